@@ -1,0 +1,78 @@
+/* Elastic law: the conventional linear spring, or the paper's cubic tension-strain law
+ * F(eps) = a1 eps + a2 eps^2 + a3 eps^3, one law for every length (the paper fits 3 lengths and
+ * predicts the 8 m tether from it). In elongation x of a tether of length L0 it reads
+ * F = (a1/L0) x + (a2/L0^2) x^2 + (a3/L0^3) x^3. */
+#include <math.h>
+
+#include "physics/laws.h"
+
+double elastic_tension(const tether_params *p, double eps)
+{
+    if (p->stiffness == STIFFNESS_LINEAR) return p->EA * eps;
+    return eps * (p->a1 + eps * (p->a2 + eps * p->a3));
+}
+
+double elastic_stiffness(const tether_params *p, double eps)
+{
+    if (p->stiffness == STIFFNESS_LINEAR) return p->EA;
+    return p->a1 + eps * (2.0 * p->a2 + 3.0 * eps * p->a3);
+}
+
+double elastic_rising_limit(const tether_params *p)
+{
+    if (p->stiffness == STIFFNESS_LINEAR) return HUGE_VAL;
+    /* smallest positive root of a1 + 2 a2 eps + 3 a3 eps^2 */
+    const double a = 3.0 * p->a3, b = 2.0 * p->a2, c = p->a1;
+    if (c <= 0.0) return 0.0;
+    if (a == 0.0) return b < 0.0 ? -c / b : HUGE_VAL;
+    const double disc = b * b - 4.0 * a * c;
+    if (disc < 0.0) return HUGE_VAL; /* a > 0 and no real root: always rising */
+    const double s = sqrt(disc);
+    const double r1 = (-b - s) / (2.0 * a), r2 = (-b + s) / (2.0 * a);
+    double best = HUGE_VAL;
+    if (r1 > 0.0 && r1 < best) best = r1;
+    if (r2 > 0.0 && r2 < best) best = r2;
+    return best;
+}
+
+int elastic_strain_at(const tether_params *p, double T, double *eps)
+{
+    if (T == 0.0) { *eps = 0.0; return 0; }
+    if (p->stiffness == STIFFNESS_LINEAR) {
+        if (p->EA <= 0.0) return -1;
+        *eps = T / p->EA;
+        return 0;
+    }
+    if (T < 0.0) {
+        /* compression (slack off): Newton from the linear guess, the cubic's slope at small
+         * negative strain is a1 */
+        double e = T / p->a1;
+        for (int k = 0; k < 100; ++k) {
+            const double de = (elastic_tension(p, e) - T) / elastic_stiffness(p, e);
+            e -= de;
+            if (fabs(de) <= 1e-15 * (1.0 + fabs(e))) break;
+        }
+        *eps = e;
+        return isfinite(e) ? 0 : -1;
+    }
+    /* bracket on the rising part [0, limit], then safeguarded Newton */
+    double hi = elastic_rising_limit(p);
+    if (!isfinite(hi)) {
+        hi = T / p->a1;
+        while (elastic_tension(p, hi) < T) hi *= 2.0;
+    } else if (elastic_tension(p, hi) < T) {
+        return -1;
+    }
+    double lo = 0.0, e = 0.5 * hi;
+    for (int k = 0; k < 200; ++k) {
+        const double f = elastic_tension(p, e) - T;
+        if (f > 0.0) hi = e; else lo = e;
+        const double d = elastic_stiffness(p, e);
+        double next = d > 0.0 ? e - f / d : 0.5 * (lo + hi);
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        if (fabs(next - e) <= 1e-16 * (1.0 + fabs(e))) { e = next; break; }
+        e = next;
+    }
+    *eps = e;
+    return 0;
+}

@@ -1,0 +1,75 @@
+/* Constitutive laws of a braided Kevlar tether, in the paper's terms.
+ *
+ * B. Wang, H. Li, J. Zhang, "Experimental investigations on nonlinear mechanical behaviors of
+ * Kevlar tether", J. Engineered Fibers and Fabrics 18 (2023). Each law is a pure function of its
+ * parameters and arguments; none of them knows about rigs, solvers or FMI.
+ */
+#ifndef KT_PHYSICS_LAWS_H
+#define KT_PHYSICS_LAWS_H
+
+#include "physics/params.h"
+
+/* ---- elastic law (paper: nonlinear stiffness) -------------------------------------------- */
+/* Tension of the elastic law at strain eps, not clamped: linear EA eps, or the cubic
+ * a1 eps + a2 eps^2 + a3 eps^3 (the same law for every length). */
+double elastic_tension(const tether_params *p, double eps);
+/* dF/deps of the elastic law. */
+double elastic_stiffness(const tether_params *p, double eps);
+/* Largest strain up to which the law keeps rising (dF/deps > 0); HUGE_VAL if it always rises. */
+double elastic_rising_limit(const tether_params *p);
+/* Strain at which the elastic law carries the tension T (T >= 0, on the rising part).
+ * Returns 0 on success, -1 if T exceeds what the law can carry. */
+int elastic_strain_at(const tether_params *p, double T, double *eps);
+
+/* ---- damping (paper: dynamical property) -------------------------------------------------- */
+/* Damping coefficient: c0 (viscous) or c(x) = c0 + c1 |x| + c2 x^2 (displacement-dependent). */
+double damping_coefficient(const tether_params *p, double x);
+
+/* ---- Kawabata loading/unloading hysteresis ------------------------------------------------ */
+#define KAWABATA_MAX_REVERSALS 64
+/* Reversal memory: the turning points R_1..R_n in order. R_1 is the largest strain reached on the
+ * virgin loading curve; odd points start unloading branches, even points start reloading
+ * branches. The current branch runs from R_n towards R_{n-1} (or, for n = 1, towards the residual
+ * strain eps_1 = kaw_residual * eps(R_1) at zero tension). A branch that reaches its target is
+ * removed with its start (Masing-type rule), so minor loops close and tension stays continuous. */
+typedef struct {
+    int n;          /* number of stored reversal points */
+    int direction;  /* +1 loading, -1 unloading */
+    double eps[KAWABATA_MAX_REVERSALS];
+    double F[KAWABATA_MAX_REVERSALS];
+} kawabata_memory;
+
+double kawabata_loading_exponent(const tether_params *p);   /* 2/LT - 1 */
+double kawabata_unloading_exponent(const tether_params *p); /* 2 (1 - r) / (RT LT) - 1 */
+double kawabata_virgin_tension(const tether_params *p, double eps);
+double kawabata_tension(const tether_params *p, const kawabata_memory *mem, double eps);
+void kawabata_reset(kawabata_memory *mem);
+/* Reverse the direction at strain eps (pushes a turning point). */
+void kawabata_reverse(const tether_params *p, kawabata_memory *mem, double eps);
+/* The strain the current branch runs to, where it rejoins an older branch; 0 if none. */
+int kawabata_target(const kawabata_memory *mem, double *eps_target);
+/* The current branch reached its target: remove it and its start. */
+void kawabata_rejoin(kawabata_memory *mem);
+
+/* ---- Bouc-Wen hysteretic force ------------------------------------------------------------ */
+/* dz/dt of the generalized Bouc-Wen law (Song and Der Kiureghian 2006):
+ *   z' = x' (A - |z|^n psi),
+ *   psi = gamma + beta sgn(x' z) + b2 sgn(x x') + b3 sgn(x z) + b4 sgn(x') + b5 sgn(z) + b6 sgn(x)
+ * The classic law z' = A x' - beta |x'| |z|^(n-1) z - gamma x' |z|^n is b2..b6 = 0.
+ * The force scale is fixed to 1 (z is the hysteretic force in newtons), which removes the
+ * redundancy among (A, beta, gamma, scale). */
+double boucwen_rate(const tether_params *p, double x, double xdot, double z);
+
+/* ---- creep (paper: three stages; the law is ours) ----------------------------------------- */
+#define CREEP_KELVIN_CELLS 3
+typedef struct {
+    double kelvin[CREEP_KELVIN_CELLS]; /* recoverable strain of each Kelvin cell */
+    double slip;                       /* unrecoverable (slip) strain */
+    double capacity;                   /* clearance strain available to slip */
+} creep_state;
+/* Rates of the creep strains under tension T >= 0. */
+void creep_rates(const tether_params *p, double T, const creep_state *s, creep_state *rate);
+/* Load activation of the slip, w(T) = T^k / (T^k + T_half^k). */
+double creep_slip_activation(const tether_params *p, double T);
+
+#endif

@@ -1,0 +1,44 @@
+/* Parameters, switches and inputs of the tether model.
+ *
+ * Field names are the variable names of modelDescription.xml: the FMI layer maps each variable
+ * onto the field of the same name, so the two cannot drift apart without a compile error. */
+#ifndef KT_PHYSICS_PARAMS_H
+#define KT_PHYSICS_PARAMS_H
+
+typedef enum { RIG_ELEMENT = 1, RIG_PAYLOAD = 2, RIG_LOAD = 3 } tether_rig;
+typedef enum { STIFFNESS_LINEAR = 1, STIFFNESS_CUBIC = 2 } stiffness_law;
+typedef enum { DAMPING_VISCOUS = 1, DAMPING_DISPLACEMENT = 2 } damping_law;
+typedef enum { HYSTERESIS_NONE = 1, HYSTERESIS_KAWABATA = 2, HYSTERESIS_BOUCWEN = 3 } hysteresis_law;
+typedef enum { INTEGRATOR_AUTO = 1, INTEGRATOR_BDF = 2, INTEGRATOR_ADAMS = 3 } integrator_choice;
+
+typedef struct {
+    /* structural switches */
+    int rig, stiffness, damping, hysteresis, creep, slack, integrator;
+    double rtol;
+    /* payload */
+    double m, g, x0, v0;
+    /* elastic law */
+    double EA, a1, a2, a3;
+    /* damping */
+    double c0, c1, c2;
+    /* Kawabata */
+    double kaw_LT, kaw_RT, kaw_eps_ref, kaw_F_ref, kaw_residual;
+    /* Bouc-Wen */
+    double bw_A, bw_beta, bw_gamma, bw_n, bw_b2, bw_b3, bw_b4, bw_b5, bw_b6, z0;
+    /* creep: recoverable Kelvin cells and unrecoverable slip */
+    double creep_J1, creep_tau1, creep_J2, creep_tau2, creep_J3, creep_tau3;
+    double slip_capacity0, slip_rate, slip_knee, slip_load_half, slip_load_exponent;
+    double slip_regen_tau, slip_limit;
+} tether_params;
+
+/* Inputs. force and load may carry time derivatives up to third order (input interpolation): from
+ * t_ref on they are the polynomial force + d1 s + d2 s^2/2 + d3 s^3/6, s = t - t_ref, likewise
+ * load; a cubic spline through sampled data is then reproduced exactly. */
+#define TETHER_INPUT_DERIVATIVE_ORDER 3
+typedef struct {
+    double L0, elongation, elongation_rate, force, load;
+    double force_der[TETHER_INPUT_DERIVATIVE_ORDER], load_der[TETHER_INPUT_DERIVATIVE_ORDER];
+    double t_ref;
+} tether_inputs;
+
+#endif

@@ -1,0 +1,345 @@
+/* The tether model: rig equations, event indicators and discrete switches. See tether.h. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "physics/tether.h"
+
+/* quantities that follow from the states at one instant */
+typedef struct {
+    double L0, u, udot, x, eps_c, eps_m, F, z, c, T_raw, T, eps_m_rate;
+    creep_state creep, creep_rate;
+} tether_instant;
+
+static double input_polynomial(double value, const double *der, double s)
+{
+    return value + s * (der[0] + s * (der[1] / 2.0 + s * der[2] / 6.0));
+}
+
+static double input_force(const tether_model *M, double t)
+{
+    return input_polynomial(M->in.force, M->in.force_der, t - M->in.t_ref);
+}
+
+static double input_load(const tether_model *M, double t)
+{
+    return input_polynomial(M->in.load, M->in.load_der, t - M->in.t_ref);
+}
+
+static int slack_active(const tether_model *M)
+{
+    return M->p.slack && M->p.rig != RIG_LOAD;
+}
+
+static double static_tension(const tether_model *M, double eps_m)
+{
+    if (M->p.hysteresis == HYSTERESIS_KAWABATA) return kawabata_tension(&M->p, &M->d.kawabata, eps_m);
+    return elastic_tension(&M->p, eps_m);
+}
+
+static void evaluate(const tether_model *M, double t, const double *y, tether_instant *s)
+{
+    const tether_params *p = &M->p;
+    s->L0 = M->in.L0;
+    memset(&s->creep, 0, sizeof s->creep);
+    memset(&s->creep_rate, 0, sizeof s->creep_rate);
+    if (p->creep) {
+        s->creep.kelvin[0] = y[ST_CREEP_1];
+        s->creep.kelvin[1] = y[ST_CREEP_2];
+        s->creep.kelvin[2] = y[ST_CREEP_3];
+        s->creep.slip = y[ST_SLIP];
+        s->creep.capacity = y[ST_CAPACITY];
+    }
+    s->eps_c = s->creep.kelvin[0] + s->creep.kelvin[1] + s->creep.kelvin[2] + s->creep.slip;
+    switch (p->rig) {
+    case RIG_PAYLOAD:
+        s->x = y[ST_DISPLACEMENT];
+        s->u = M->d.balance_elongation + s->x;
+        s->udot = y[ST_VELOCITY];
+        break;
+    case RIG_LOAD:
+        s->u = y[ST_LOAD_ELONGATION];
+        s->x = s->u;
+        s->udot = 0.0; /* below */
+        break;
+    default:
+        s->u = M->in.elongation;
+        s->x = s->u;
+        s->udot = M->in.elongation_rate;
+        break;
+    }
+    s->eps_m = s->u / s->L0 - s->eps_c;
+    s->F = static_tension(M, s->eps_m);
+    s->z = p->hysteresis == HYSTERESIS_BOUCWEN ? y[ST_HYSTERETIC_FORCE] : 0.0;
+    s->c = damping_coefficient(p, s->x);
+    if (p->rig == RIG_LOAD) {
+        s->T = input_load(M, t);
+        s->udot = (s->T - s->F - s->z) / s->c;
+        s->T_raw = s->T;
+    } else {
+        s->T_raw = s->F + s->z + s->c * s->udot;
+        s->T = (slack_active(M) && !M->d.taut) ? 0.0 : s->T_raw;
+    }
+    if (p->creep) creep_rates(p, s->T, &s->creep, &s->creep_rate);
+    const double eps_c_rate = s->creep_rate.kelvin[0] + s->creep_rate.kelvin[1] +
+                              s->creep_rate.kelvin[2] + s->creep_rate.slip;
+    s->eps_m_rate = s->udot / s->L0 - eps_c_rate;
+}
+
+int tether_check(const tether_model *M, char *msg, size_t len)
+{
+    const tether_params *p = &M->p;
+#define FAIL(...) do { snprintf(msg, len, __VA_ARGS__); return -1; } while (0)
+    if (p->rig < RIG_ELEMENT || p->rig > RIG_LOAD) FAIL("rig = %d: expected 1 (element), 2 (payload) or 3 (load)", p->rig);
+    if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_CUBIC) FAIL("stiffness = %d: expected 1 (linear) or 2 (cubic)", p->stiffness);
+    if (p->damping < DAMPING_VISCOUS || p->damping > DAMPING_DISPLACEMENT) FAIL("damping = %d: expected 1 (viscous) or 2 (displacement)", p->damping);
+    if (p->hysteresis < HYSTERESIS_NONE || p->hysteresis > HYSTERESIS_BOUCWEN) FAIL("hysteresis = %d: expected 1 (none), 2 (kawabata) or 3 (boucwen)", p->hysteresis);
+    if (p->integrator < INTEGRATOR_AUTO || p->integrator > INTEGRATOR_ADAMS) FAIL("integrator = %d: expected 1 (auto), 2 (bdf) or 3 (adams)", p->integrator);
+    if (!(p->rtol >= 1e-14 && p->rtol <= 1e-2)) FAIL("rtol = %g: expected a relative tolerance in [1e-14, 1e-2]", p->rtol);
+    if (!(M->in.L0 > 0.0) || !isfinite(M->in.L0)) FAIL("L0 = %g m: the natural length must be positive", M->in.L0);
+    if (p->rig == RIG_PAYLOAD && !(p->m > 0.0)) FAIL("m = %g kg: the payload rig needs a positive mass", p->m);
+    if (!(p->g >= 0.0)) FAIL("g = %g m/s2: expected g >= 0", p->g);
+    if (p->stiffness == STIFFNESS_LINEAR && p->hysteresis != HYSTERESIS_KAWABATA && !(p->EA > 0.0)) FAIL("EA = %g N: the linear law needs EA > 0", p->EA);
+    if (p->stiffness == STIFFNESS_CUBIC && p->hysteresis != HYSTERESIS_KAWABATA && !(p->a1 > 0.0)) FAIL("a1 = %g N: the cubic law needs a1 > 0", p->a1);
+    if (!(p->c0 >= 0.0)) FAIL("c0 = %g N.s/m: expected c0 >= 0", p->c0);
+    if (!(p->c1 >= 0.0)) FAIL("c1 = %g N.s/m2: expected c1 >= 0", p->c1);
+    if (!(p->c2 >= 0.0)) FAIL("c2 = %g N.s/m3: expected c2 >= 0", p->c2);
+    if (p->rig == RIG_LOAD && !(p->c0 > 0.0)) FAIL("c0 = %g N.s/m: the load rig relaxes the elongation through the damper and needs c0 > 0", p->c0);
+    if (p->hysteresis == HYSTERESIS_KAWABATA) {
+        if (!(p->kaw_LT > 0.05 && p->kaw_LT < 1.95)) FAIL("kaw_LT = %g: expected a linearity in (0.05, 1.95)", p->kaw_LT);
+        if (!(p->kaw_RT > 0.0 && p->kaw_RT <= 1.0)) FAIL("kaw_RT = %g: expected a resilience in (0, 1]", p->kaw_RT);
+        if (!(p->kaw_residual >= 0.0 && p->kaw_residual < 0.95)) FAIL("kaw_residual = %g: expected a fraction in [0, 0.95)", p->kaw_residual);
+        if (!(p->kaw_eps_ref > 0.0)) FAIL("kaw_eps_ref = %g: expected a positive strain", p->kaw_eps_ref);
+        if (!(p->kaw_F_ref > 0.0)) FAIL("kaw_F_ref = %g N: expected a positive tension", p->kaw_F_ref);
+        if (!(kawabata_unloading_exponent(p) > 0.0))
+            FAIL("kaw_RT = %g with kaw_LT = %g and kaw_residual = %g give an unloading exponent %g <= 0: "
+                 "expected 2 (1 - kaw_residual) > kaw_RT kaw_LT", p->kaw_RT, p->kaw_LT, p->kaw_residual,
+                 kawabata_unloading_exponent(p));
+    }
+    if (p->hysteresis == HYSTERESIS_BOUCWEN && !(p->bw_n > 0.0)) FAIL("bw_n = %g: expected n > 0", p->bw_n);
+    if (p->creep) {
+        const double taus[3] = {p->creep_tau1, p->creep_tau2, p->creep_tau3};
+        const double Js[3] = {p->creep_J1, p->creep_J2, p->creep_J3};
+        for (int k = 0; k < 3; ++k) {
+            if (!(taus[k] > 0.0)) FAIL("creep_tau%d = %g s: expected a positive retardation time", k + 1, taus[k]);
+            if (!(Js[k] >= 0.0)) FAIL("creep_J%d = %g 1/N: expected a compliance >= 0", k + 1, Js[k]);
+        }
+        if (!(p->slip_capacity0 >= 0.0)) FAIL("slip_capacity0 = %g: expected >= 0", p->slip_capacity0);
+        if (!(p->slip_rate >= 0.0)) FAIL("slip_rate = %g 1/s: expected >= 0", p->slip_rate);
+        if (!(p->slip_knee > 0.0)) FAIL("slip_knee = %g: expected > 0", p->slip_knee);
+        if (!(p->slip_load_half > 0.0)) FAIL("slip_load_half = %g N: expected > 0", p->slip_load_half);
+        if (!(p->slip_load_exponent >= 1.0)) FAIL("slip_load_exponent = %g: expected >= 1", p->slip_load_exponent);
+        if (!(p->slip_regen_tau > 0.0)) FAIL("slip_regen_tau = %g s: expected > 0", p->slip_regen_tau);
+        if (!(p->slip_limit > 0.0)) FAIL("slip_limit = %g: expected > 0", p->slip_limit);
+    }
+#undef FAIL
+    return 0;
+}
+
+/* strain of the static law (elastic, or Kawabata's virgin curve) under tension T */
+static int static_strain_at(const tether_model *M, double T, double *eps)
+{
+    const tether_params *p = &M->p;
+    if (p->hysteresis == HYSTERESIS_KAWABATA) {
+        *eps = T <= 0.0 ? 0.0 : p->kaw_eps_ref * pow(T / p->kaw_F_ref, 1.0 / kawabata_loading_exponent(p));
+        return 0;
+    }
+    return elastic_strain_at(p, T, eps);
+}
+
+int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t len)
+{
+    const tether_params *p = &M->p;
+    if (tether_check(M, msg, len) != 0) return -1;
+    memset(y, 0, sizeof(double) * TETHER_NUMBER_OF_STATES);
+    kawabata_reset(&M->d.kawabata);
+    M->d.balance_elongation = 0.0;
+    M->d.warned_rising_limit = 0;
+    const double z0 = p->hysteresis == HYSTERESIS_BOUCWEN ? p->z0 : 0.0;
+    double eps;
+    if (p->rig == RIG_PAYLOAD) {
+        const double W = p->m * p->g - z0;
+        if (static_strain_at(M, W, &eps) != 0) {
+            snprintf(msg, len, "m = %g kg, g = %g m/s2: the weight %g N exceeds the largest tension %g N the "
+                     "cubic law carries (at strain %g, where dF/deps reaches 0)", p->m, p->g, W,
+                     elastic_tension(p, elastic_rising_limit(p)), elastic_rising_limit(p));
+            return -1;
+        }
+        M->d.balance_elongation = eps * M->in.L0;
+        y[ST_DISPLACEMENT] = p->x0;
+        y[ST_VELOCITY] = p->v0;
+    } else if (p->rig == RIG_LOAD) {
+        const double T0 = input_load(M, t0) - z0;
+        if (static_strain_at(M, T0, &eps) != 0) {
+            snprintf(msg, len, "load = %g N: exceeds the largest tension %g N the cubic law carries (at strain %g)",
+                     input_load(M, t0), elastic_tension(p, elastic_rising_limit(p)), elastic_rising_limit(p));
+            return -1;
+        }
+        y[ST_LOAD_ELONGATION] = eps * M->in.L0;
+    }
+    y[ST_HYSTERETIC_FORCE] = z0;
+    y[ST_CAPACITY] = p->creep ? p->slip_capacity0 : 0.0;
+    /* initial slack mode: taut only where the tether is stretched and pulls */
+    M->d.taut = 1;
+    if (slack_active(M)) {
+        tether_instant s;
+        evaluate(M, t0, y, &s);
+        M->d.taut = s.eps_m > 0.0 && s.T_raw > 0.0;
+    }
+    return 0;
+}
+
+void tether_derivatives(const tether_model *M, double t, const double *y, double *ydot)
+{
+    const tether_params *p = &M->p;
+    tether_instant s;
+    evaluate(M, t, y, &s);
+    memset(ydot, 0, sizeof(double) * TETHER_NUMBER_OF_STATES);
+    if (p->rig == RIG_PAYLOAD) {
+        ydot[ST_DISPLACEMENT] = s.udot;
+        ydot[ST_VELOCITY] = p->g + (input_force(M, t) - s.T) / p->m;
+    } else if (p->rig == RIG_LOAD) {
+        ydot[ST_LOAD_ELONGATION] = s.udot;
+    }
+    if (p->hysteresis == HYSTERESIS_BOUCWEN)
+        ydot[ST_HYSTERETIC_FORCE] = boucwen_rate(p, s.x, s.L0 * s.eps_m_rate, s.z);
+    if (p->creep) {
+        ydot[ST_CREEP_1] = s.creep_rate.kelvin[0];
+        ydot[ST_CREEP_2] = s.creep_rate.kelvin[1];
+        ydot[ST_CREEP_3] = s.creep_rate.kelvin[2];
+        ydot[ST_SLIP] = s.creep_rate.slip;
+        ydot[ST_CAPACITY] = s.creep_rate.capacity;
+    }
+}
+
+void tether_event_indicators(const tether_model *M, double t, const double *y, double *g)
+{
+    tether_instant s;
+    evaluate(M, t, y, &s);
+    for (int i = 0; i < TETHER_NUMBER_OF_EVENT_INDICATORS; ++i) g[i] = 1.0;
+    if (slack_active(M)) {
+        /* taut: an event when the strain or the pull falls below -band; slack: when both rise above +band */
+        const double sgn = M->d.taut ? 1.0 : -1.0;
+        g[EV_SLACK_STRAIN] = s.eps_m + sgn * TETHER_SLACK_STRAIN_BAND;
+        g[EV_SLACK_TENSION] = s.T_raw + sgn * TETHER_SLACK_TENSION_BAND;
+    }
+    if (M->p.hysteresis == HYSTERESIS_KAWABATA) {
+        const kawabata_memory *k = &M->d.kawabata;
+        g[EV_KAWABATA_RATE] = k->direction * s.eps_m_rate + TETHER_REVERSAL_RATE_BAND;
+        double eb;
+        if (kawabata_target(k, &eb)) g[EV_KAWABATA_TARGET] = k->direction * (eb - s.eps_m);
+    }
+}
+
+int tether_event_update(tether_model *M, double t, const double *y, char *msg, size_t len)
+{
+    int switches = 0;
+    size_t used = 0;
+    if (msg && len) msg[0] = '\0';
+#define NOTE(...) do { if (msg && used < len) used += (size_t)snprintf(msg + used, len - used, __VA_ARGS__); } while (0)
+    if (M->p.hysteresis == HYSTERESIS_KAWABATA) {
+        for (int guard = 0; guard < 2 * KAWABATA_MAX_REVERSALS; ++guard) {
+            tether_instant s;
+            evaluate(M, t, y, &s);
+            kawabata_memory *k = &M->d.kawabata;
+            double eb;
+            if (k->direction * s.eps_m_rate <= -TETHER_REVERSAL_RATE_BAND) {
+                kawabata_reverse(&M->p, k, s.eps_m);
+                NOTE("t = %.17g s: Kawabata reversal to %s at strain %.9g, tension %.9g N. ", t,
+                     k->direction > 0 ? "reloading" : "unloading", s.eps_m, s.F);
+                ++switches;
+            } else if (kawabata_target(k, &eb) && k->direction * (eb - s.eps_m) <= 0.0) {
+                kawabata_rejoin(k);
+                NOTE("t = %.17g s: Kawabata branch rejoins the older branch at strain %.9g. ", t, eb);
+                ++switches;
+            } else {
+                break;
+            }
+        }
+    }
+    if (slack_active(M)) {
+        tether_instant s;
+        evaluate(M, t, y, &s);
+        int taut = M->d.taut;
+        if (taut && (s.eps_m <= -TETHER_SLACK_STRAIN_BAND || s.T_raw <= -TETHER_SLACK_TENSION_BAND)) taut = 0;
+        else if (!taut && s.eps_m >= TETHER_SLACK_STRAIN_BAND && s.T_raw >= TETHER_SLACK_TENSION_BAND) taut = 1;
+        if (taut != M->d.taut) {
+            M->d.taut = taut;
+            NOTE("t = %.17g s: tether goes %s (strain %.6g, unclamped tension %.6g N). ", t,
+                 taut ? "taut" : "slack", s.eps_m, s.T_raw);
+            ++switches;
+        }
+    }
+#undef NOTE
+    return switches;
+}
+
+void tether_compute_outputs(const tether_model *M, double t, const double *y, tether_outputs *o)
+{
+    tether_instant s;
+    double ydot[TETHER_NUMBER_OF_STATES];
+    evaluate(M, t, y, &s);
+    tether_derivatives(M, t, y, ydot);
+    memset(o, 0, sizeof *o);
+    o->tension = s.T;
+    o->elongation = s.u;
+    o->strain = s.u / s.L0;
+    o->displacement = s.u - M->d.balance_elongation;
+    o->velocity = s.udot;
+    o->load_elongation = y[ST_LOAD_ELONGATION];
+    o->hysteretic_force = y[ST_HYSTERETIC_FORCE];
+    o->creep_strain_1 = y[ST_CREEP_1];
+    o->creep_strain_2 = y[ST_CREEP_2];
+    o->creep_strain_3 = y[ST_CREEP_3];
+    o->slip_strain = y[ST_SLIP];
+    o->slip_capacity = y[ST_CAPACITY];
+    o->der_displacement = ydot[ST_DISPLACEMENT];
+    o->der_velocity = ydot[ST_VELOCITY];
+    o->der_load_elongation = ydot[ST_LOAD_ELONGATION];
+    o->der_hysteretic_force = ydot[ST_HYSTERETIC_FORCE];
+    o->der_creep_strain_1 = ydot[ST_CREEP_1];
+    o->der_creep_strain_2 = ydot[ST_CREEP_2];
+    o->der_creep_strain_3 = ydot[ST_CREEP_3];
+    o->der_slip_strain = ydot[ST_SLIP];
+    o->der_slip_capacity = ydot[ST_CAPACITY];
+    o->balance_elongation = M->d.balance_elongation;
+    o->creep_total = s.eps_c;
+    o->is_slack = slack_active(M) && !M->d.taut;
+    o->mechanical_strain = s.eps_m;
+    o->raw_tension = s.T_raw;
+}
+
+void tether_nominals(const tether_model *M, double *nominal)
+{
+    const double L0 = M->in.L0;
+    nominal[ST_DISPLACEMENT] = 1e-3 * L0;
+    nominal[ST_VELOCITY] = 1e-2 * L0;
+    nominal[ST_LOAD_ELONGATION] = 1e-2 * L0;
+    nominal[ST_HYSTERETIC_FORCE] = 1.0;
+    nominal[ST_CREEP_1] = nominal[ST_CREEP_2] = nominal[ST_CREEP_3] = 1e-4;
+    nominal[ST_SLIP] = nominal[ST_CAPACITY] = 1e-4;
+}
+
+int tether_is_stiff(const tether_model *M)
+{
+    if (M->p.integrator == INTEGRATOR_BDF) return 1;
+    if (M->p.integrator == INTEGRATOR_ADAMS) return 0;
+    return M->p.creep || M->p.rig == RIG_LOAD;
+}
+
+int tether_check_range(tether_model *M, double t, const double *y, char *msg, size_t len)
+{
+    if (M->p.stiffness != STIFFNESS_CUBIC || M->p.hysteresis == HYSTERESIS_KAWABATA || M->d.warned_rising_limit)
+        return 0;
+    tether_instant s;
+    evaluate(M, t, y, &s);
+    const double limit = elastic_rising_limit(&M->p);
+    if (s.eps_m > limit && !(slack_active(M) && !M->d.taut)) {
+        M->d.warned_rising_limit = 1;
+        snprintf(msg, len, "t = %.9g s: strain %.6g is beyond %.6g, where the cubic law a1 = %g, a2 = %g, "
+                 "a3 = %g stops rising (dF/deps <= 0); results there are an extrapolation of the fit",
+                 t, s.eps_m, limit, M->p.a1, M->p.a2, M->p.a3);
+        return 1;
+    }
+    return 0;
+}

@@ -1,0 +1,109 @@
+/* The tether model: the laws of laws.h assembled into one of three rigs, as a hybrid ODE
+ * (continuous states, event indicators, discrete modes). Knows nothing of FMI or of the solver.
+ *
+ * The tether is a mechanical element (elastic or Kawabata law, Bouc-Wen force z, damper) in series
+ * with a creep element (Kelvin cells and slip), all per unit length:
+ *   eps = u / L0 = eps_m + eps_c,    T = F(eps_m) + z + c(x) u'   (clamped at 0 when slack)
+ * u is the elongation, eps_m the mechanical strain, eps_c the creep strain, x the displacement
+ * that the damping and the Bouc-Wen sign terms see (the payload's displacement from balance in
+ * the payload rig, the elongation in the others). The damper acts on the total elongation rate.
+ *
+ * Rigs:
+ *   element  u, u' are inputs; T is the output (a force element between two bodies)
+ *   payload  m x'' = m g + f(t) - T, u = u_bal + x, u_bal the balance stretch of the elastic law
+ *            under m g (a mass hanging on the tether)
+ *   load     the applied tension T(t) is the input, the inertia is negligible (slow tests):
+ *            c(u) u' = T - F(eps_m) - z relaxes the elongation through the damper
+ */
+#ifndef KT_PHYSICS_TETHER_H
+#define KT_PHYSICS_TETHER_H
+
+#include <stddef.h>
+
+#include "physics/laws.h"
+#include "physics/params.h"
+
+/* continuous states, in the order of modelDescription.xml's ModelStructure/Derivatives */
+enum {
+    ST_DISPLACEMENT,
+    ST_VELOCITY,
+    ST_LOAD_ELONGATION,
+    ST_HYSTERETIC_FORCE,
+    ST_CREEP_1,
+    ST_CREEP_2,
+    ST_CREEP_3,
+    ST_SLIP,
+    ST_CAPACITY,
+    TETHER_NUMBER_OF_STATES
+};
+
+/* event indicators */
+enum {
+    EV_SLACK_STRAIN,   /* mechanical strain crosses zero (slack entry/exit) */
+    EV_SLACK_TENSION,  /* the unclamped tension crosses zero (slack entry/exit) */
+    EV_KAWABATA_RATE,  /* the strain rate changes sign (Kawabata reversal) */
+    EV_KAWABATA_TARGET,/* the branch reaches the turning point it runs to (Kawabata rejoin) */
+    TETHER_NUMBER_OF_EVENT_INDICATORS
+};
+
+/* Discrete state: everything besides the continuous states that the model needs to go on. Plain
+ * values only (no pointers), so a model is saved and restored by value. */
+typedef struct {
+    int taut;                 /* 1 while the tether carries tension (slack on) */
+    kawabata_memory kawabata; /* reversal memory */
+    double balance_elongation;/* u_bal, payload rig */
+    int warned_rising_limit;  /* the cubic was reported outside its rising range */
+} tether_discrete;
+
+typedef struct {
+    tether_params p;
+    tether_inputs in;
+    tether_discrete d;
+} tether_model;
+
+/* Everything an observer may want at one instant; field names are modelDescription.xml's. */
+typedef struct {
+    double tension, strain, elongation, displacement, velocity;
+    double load_elongation, hysteretic_force, creep_strain_1, creep_strain_2, creep_strain_3;
+    double slip_strain, slip_capacity;
+    double der_displacement, der_velocity, der_load_elongation, der_hysteretic_force;
+    double der_creep_strain_1, der_creep_strain_2, der_creep_strain_3, der_slip_strain;
+    double der_slip_capacity;
+    double balance_elongation, creep_total;
+    int is_slack;
+    /* diagnostics */
+    double mechanical_strain, raw_tension;
+} tether_outputs;
+
+/* Thresholds that give the slack and reversal switches a tiny hysteresis band, so that an event
+ * located by root finding is never ambiguous and a switch cannot chatter. */
+#define TETHER_SLACK_STRAIN_BAND 1e-13
+#define TETHER_SLACK_TENSION_BAND 1e-12
+#define TETHER_REVERSAL_RATE_BAND 1e-12
+
+/* Check the parameters and inputs; on failure write a message that names the variable, its value
+ * and what was expected, and return -1. */
+int tether_check(const tether_model *M, char *msg, size_t len);
+
+/* Compute the balance stretch, the initial states y and the initial discrete state. */
+int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t len);
+
+void tether_derivatives(const tether_model *M, double t, const double *y, double *ydot);
+void tether_event_indicators(const tether_model *M, double t, const double *y, double *g);
+
+/* Update the discrete state at an event (or after inputs changed). Returns the number of switches
+ * made; describes them in msg (for event logging). Idempotent: a second call changes nothing. */
+int tether_event_update(tether_model *M, double t, const double *y, char *msg, size_t len);
+
+void tether_compute_outputs(const tether_model *M, double t, const double *y, tether_outputs *out);
+
+/* Nominal magnitude of each state (absolute tolerances are rtol times these). */
+void tether_nominals(const tether_model *M, double *nominal);
+
+/* 1 when the problem is stiff (creep time scales, the load rig's relaxation): use BDF. */
+int tether_is_stiff(const tether_model *M);
+
+/* 1 the first time the cubic law is evaluated beyond its rising range; writes a warning. */
+int tether_check_range(tether_model *M, double t, const double *y, char *msg, size_t len);
+
+#endif

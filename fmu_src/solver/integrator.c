@@ -1,0 +1,177 @@
+/* CVODE (SUNDIALS 6) wrapper. See integrator.h. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cvode/cvode.h>
+#include <nvector/nvector_serial.h>
+#include <sundials/sundials_context.h>
+#include <sunlinsol/sunlinsol_dense.h>
+#include <sunmatrix/sunmatrix_dense.h>
+#include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
+
+#include "solver/integrator.h"
+
+#define N_STATES TETHER_NUMBER_OF_STATES
+#define N_EVENTS TETHER_NUMBER_OF_EVENT_INDICATORS
+/* a step that needs more events than this is a Zeno run (chattering) */
+#define MAX_EVENTS_PER_ADVANCE 100000L
+
+struct tether_integrator {
+    tether_model *M;
+    SUNContext ctx;
+    void *cvode;
+    N_Vector y, abstol;
+    SUNMatrix A;
+    SUNLinearSolver LS;
+    SUNNonlinearSolver NLS;
+    int stiff;
+    double t;
+    integrator_log_fn log;
+    void *log_ctx;
+    long events, resets;
+    char error[512];
+};
+
+static int rhs(realtype t, N_Vector y, N_Vector ydot, void *user)
+{
+    const tether_integrator *I = (const tether_integrator *)user;
+    tether_derivatives(I->M, t, NV_DATA_S(y), NV_DATA_S(ydot));
+    for (int i = 0; i < N_STATES; ++i)
+        if (!isfinite(NV_Ith_S(ydot, i))) return 1; /* recoverable: CVODE retries a smaller step */
+    return 0;
+}
+
+static int roots(realtype t, N_Vector y, realtype *g, void *user)
+{
+    const tether_integrator *I = (const tether_integrator *)user;
+    tether_event_indicators(I->M, t, NV_DATA_S(y), g);
+    return 0;
+}
+
+static void on_cvode_error(int code, const char *module, const char *function, char *msg, void *user)
+{
+    tether_integrator *I = (tether_integrator *)user;
+    snprintf(I->error, sizeof I->error, "%s (%s, flag %d): %s", function, module, code, msg);
+}
+
+tether_integrator *integrator_create(tether_model *M, integrator_log_fn log, void *log_ctx,
+                                     char *msg, size_t len)
+{
+    tether_integrator *I = (tether_integrator *)calloc(1, sizeof *I);
+    if (!I) { snprintf(msg, len, "out of memory"); return NULL; }
+    I->M = M;
+    I->log = log;
+    I->log_ctx = log_ctx;
+    I->stiff = tether_is_stiff(M);
+    if (SUNContext_Create(NULL, &I->ctx) != 0) goto fail;
+    I->y = N_VNew_Serial(N_STATES, I->ctx);
+    I->abstol = N_VNew_Serial(N_STATES, I->ctx);
+    if (!I->y || !I->abstol) goto fail;
+    N_VConst(0.0, I->y);
+    I->cvode = CVodeCreate(I->stiff ? CV_BDF : CV_ADAMS, I->ctx);
+    if (!I->cvode) goto fail;
+    CVodeSetErrHandlerFn(I->cvode, on_cvode_error, I);
+    if (CVodeInit(I->cvode, rhs, 0.0, I->y) != CV_SUCCESS) goto fail;
+    double nominal[N_STATES];
+    tether_nominals(M, nominal);
+    for (int i = 0; i < N_STATES; ++i) NV_Ith_S(I->abstol, i) = M->p.rtol * nominal[i];
+    if (CVodeSVtolerances(I->cvode, M->p.rtol, I->abstol) != CV_SUCCESS) goto fail;
+    if (CVodeSetUserData(I->cvode, I) != CV_SUCCESS) goto fail;
+    if (CVodeRootInit(I->cvode, N_EVENTS, roots) != CV_SUCCESS) goto fail;
+    if (I->stiff) {
+        I->A = SUNDenseMatrix(N_STATES, N_STATES, I->ctx);
+        I->LS = SUNLinSol_Dense(I->y, I->A, I->ctx);
+        if (!I->A || !I->LS || CVodeSetLinearSolver(I->cvode, I->LS, I->A) != CV_SUCCESS) goto fail;
+    } else {
+        I->NLS = SUNNonlinSol_FixedPoint(I->y, 0, I->ctx);
+        if (!I->NLS || CVodeSetNonlinearSolver(I->cvode, I->NLS) != CV_SUCCESS) goto fail;
+    }
+    CVodeSetMaxNumSteps(I->cvode, 1000000L);
+    CVodeSetMaxHnilWarns(I->cvode, -1);
+    return I;
+fail:
+    snprintf(msg, len, "could not set up CVODE%s%s", I->error[0] ? ": " : "", I->error);
+    integrator_free(I);
+    return NULL;
+}
+
+void integrator_free(tether_integrator *I)
+{
+    if (!I) return;
+    if (I->cvode) CVodeFree(&I->cvode);
+    if (I->LS) SUNLinSolFree(I->LS);
+    if (I->NLS) SUNNonlinSolFree(I->NLS);
+    if (I->A) SUNMatDestroy(I->A);
+    if (I->y) N_VDestroy(I->y);
+    if (I->abstol) N_VDestroy(I->abstol);
+    if (I->ctx) SUNContext_Free(&I->ctx);
+    free(I);
+}
+
+int integrator_reset(tether_integrator *I, double t, const double *y)
+{
+    memcpy(NV_DATA_S(I->y), y, sizeof(double) * N_STATES);
+    I->t = t;
+    I->resets += 1;
+    if (CVodeReInit(I->cvode, t, I->y) != CV_SUCCESS) return -1;
+    return 0;
+}
+
+int integrator_advance(tether_integrator *I, double t_end, double *t_reached, double *y)
+{
+    long events = 0;
+    I->error[0] = '\0';
+    while (I->t < t_end) {
+        realtype tret = I->t;
+        CVodeSetStopTime(I->cvode, t_end);
+        const int flag = CVode(I->cvode, t_end, I->y, &tret, CV_NORMAL);
+        if (flag == CV_ROOT_RETURN) {
+            I->t = tret;
+            char note[1024];
+            const int switches = tether_event_update(I->M, tret, NV_DATA_S(I->y), note, sizeof note);
+            if (switches > 0) {
+                if (I->log) I->log(I->log_ctx, note);
+                I->events += switches;
+                if (++events > MAX_EVENTS_PER_ADVANCE) {
+                    snprintf(I->error, sizeof I->error, "more than %ld events before t = %.17g s (chattering)",
+                             MAX_EVENTS_PER_ADVANCE, t_end);
+                    break;
+                }
+                if (CVodeReInit(I->cvode, tret, I->y) != CV_SUCCESS) break;
+                I->resets += 1;
+            }
+            continue;
+        }
+        if (flag < 0) {
+            if (!I->error[0]) snprintf(I->error, sizeof I->error, "CVode failed with flag %d", flag);
+            /* the last good point: CVODE's current internal time and solution */
+            realtype tcur = I->t;
+            if (CVodeGetCurrentTime(I->cvode, &tcur) == CV_SUCCESS && tcur > I->t &&
+                CVodeGetDky(I->cvode, tcur, 0, I->y) == CV_SUCCESS) {
+                I->t = tcur;
+            }
+            memcpy(y, NV_DATA_S(I->y), sizeof(double) * N_STATES);
+            *t_reached = I->t;
+            return -1;
+        }
+        I->t = t_end; /* CV_SUCCESS or CV_TSTOP_RETURN: tret == t_end */
+    }
+    memcpy(y, NV_DATA_S(I->y), sizeof(double) * N_STATES);
+    *t_reached = I->t;
+    return I->error[0] ? -1 : 0;
+}
+
+const char *integrator_error(const tether_integrator *I) { return I->error; }
+
+void integrator_get_stats(const tether_integrator *I, integrator_stats *s)
+{
+    long int nst = 0, nfe = 0;
+    CVodeGetNumSteps(I->cvode, &nst);
+    CVodeGetNumRhsEvals(I->cvode, &nfe);
+    s->steps = nst;
+    s->rhs_evaluations = nfe;
+    s->events = I->events;
+    s->resets = I->resets;
+}

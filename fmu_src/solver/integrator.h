@@ -1,0 +1,39 @@
+/* The CVODE wrapper: integrates a tether model (physics/tether.h) to a given time, locating
+ * every state event (slack entry and exit, Kawabata reversals) by root finding, switching the
+ * model's discrete state there and re-initialising CVODE. Knows nothing of FMI. */
+#ifndef KT_SOLVER_INTEGRATOR_H
+#define KT_SOLVER_INTEGRATOR_H
+
+#include <stddef.h>
+
+#include "physics/tether.h"
+
+typedef struct tether_integrator tether_integrator;
+
+/* Event messages go here (may be NULL). */
+typedef void (*integrator_log_fn)(void *ctx, const char *message);
+
+/* Create an integrator for the model M (which must outlive it and is read at every call, so a
+ * model restored by value in place is seen at the next reset). BDF or Adams follows
+ * tether_is_stiff(M). Returns NULL and a message on failure. */
+tether_integrator *integrator_create(tether_model *M, integrator_log_fn log, void *log_ctx,
+                                     char *msg, size_t len);
+void integrator_free(tether_integrator *I);
+
+/* (Re)start at time t from the states y: the history is discarded. */
+int integrator_reset(tether_integrator *I, double t, const double *y);
+
+/* Integrate from the current time to t_end, handling events. On success returns 0 with
+ * *t_reached = t_end and y the states there. On failure returns -1, *t_reached the last time the
+ * solution was good, y the states at that time, and a message in integrator_error(I). */
+int integrator_advance(tether_integrator *I, double t_end, double *t_reached, double *y);
+
+const char *integrator_error(const tether_integrator *I);
+
+/* Work counters, for benchmarks and logs. */
+typedef struct {
+    long steps, rhs_evaluations, events, resets;
+} integrator_stats;
+void integrator_get_stats(const tether_integrator *I, integrator_stats *s);
+
+#endif
