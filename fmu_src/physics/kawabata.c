@@ -72,6 +72,27 @@ double kawabata_tension(const tether_params *p, const kawabata_memory *mem, doub
     return Fb + (Fa - Fb) * pow(s, kawabata_unloading_exponent(p));
 }
 
+double kawabata_stiffness(const tether_params *p, const kawabata_memory *mem, double eps)
+{
+    const int n = mem->n;
+    if (n == 0) {
+        if (eps <= 0.0) return 0.0;
+        const double e = kawabata_loading_exponent(p);
+        return p->kaw_F_ref * e * pow(eps / p->kaw_eps_ref, e - 1.0) / p->kaw_eps_ref;
+    }
+    const double ea = mem->eps[n - 1], Fa = mem->F[n - 1];
+    double eb, Fb;
+    branch_end(p, mem, &eb, &Fb);
+    const double span = mem->direction > 0 ? eb - ea : ea - eb;
+    if (!(span > 0.0)) return 0.0;
+    if (mem->direction > 0) {
+        const double s = (eps - ea) / span, e = kawabata_loading_exponent(p);
+        return s <= 0.0 ? 0.0 : (Fb - Fa) * e * pow(s, e - 1.0) / span;
+    }
+    const double s = (eps - eb) / span, e = kawabata_unloading_exponent(p);
+    return s <= 0.0 ? 0.0 : (Fa - Fb) * e * pow(s, e - 1.0) / span;
+}
+
 void kawabata_reverse(const tether_params *p, kawabata_memory *mem, double eps)
 {
     double F = kawabata_tension(p, mem, eps);

@@ -43,6 +43,8 @@ double kawabata_loading_exponent(const tether_params *p);   /* 2/LT - 1 */
 double kawabata_unloading_exponent(const tether_params *p); /* 2 (1 - r) / (RT LT) - 1 */
 double kawabata_virgin_tension(const tether_params *p, double eps);
 double kawabata_tension(const tether_params *p, const kawabata_memory *mem, double eps);
+/* dF/deps of the current branch */
+double kawabata_stiffness(const tether_params *p, const kawabata_memory *mem, double eps);
 void kawabata_reset(kawabata_memory *mem);
 /* Reverse the direction at strain eps (pushes a turning point). */
 void kawabata_reverse(const tether_params *p, kawabata_memory *mem, double eps);
