@@ -34,6 +34,12 @@ struct tether_integrator {
     char error[512];
 };
 
+double integrator_local_tolerance(double rtol)
+{
+    const double local = rtol * INTEGRATOR_LOCAL_TOLERANCE_FACTOR;
+    return local > INTEGRATOR_SMALLEST_LOCAL_TOLERANCE ? local : INTEGRATOR_SMALLEST_LOCAL_TOLERANCE;
+}
+
 static int rhs(realtype t, N_Vector y, N_Vector ydot, void *user)
 {
     const tether_integrator *I = (const tether_integrator *)user;
@@ -76,8 +82,9 @@ tether_integrator *integrator_create(tether_model *M, integrator_log_fn log, voi
     if (CVodeInit(I->cvode, rhs, 0.0, I->y) != CV_SUCCESS) goto fail;
     double nominal[N_STATES];
     tether_nominals(M, nominal);
-    for (int i = 0; i < N_STATES; ++i) NV_Ith_S(I->abstol, i) = M->p.rtol * nominal[i];
-    if (CVodeSVtolerances(I->cvode, M->p.rtol, I->abstol) != CV_SUCCESS) goto fail;
+    const double local_rtol = integrator_local_tolerance(M->p.rtol);
+    for (int i = 0; i < N_STATES; ++i) NV_Ith_S(I->abstol, i) = local_rtol * nominal[i];
+    if (CVodeSVtolerances(I->cvode, local_rtol, I->abstol) != CV_SUCCESS) goto fail;
     if (CVodeSetUserData(I->cvode, I) != CV_SUCCESS) goto fail;
     if (CVodeRootInit(I->cvode, N_EVENTS, roots) != CV_SUCCESS) goto fail;
     if (I->stiff) {

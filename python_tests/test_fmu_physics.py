@@ -1,0 +1,193 @@
+"""Acceptance tests of the KevlarTether FMU: physics against independent expectations.
+
+Every expectation below is computed here from closed forms (damped linear oscillator, free fall,
+roots of the cubic tension law) or conservation laws, never from earlier FMU output. The FMU is
+found through $KT_FMU, else <repo>/build/KevlarTether.fmu (see fmu_harness.py). Measured figures are
+printed as 'FIGURE ...' lines (pytest -s or -rP shows them).
+"""
+import re
+
+import numpy as np
+import pytest
+
+import fmu_harness as H
+
+M, G, L0, EA = 4.3, 9.81, 16.0, 3500.0
+K = EA / L0  # spring constant of the linear law about any point (N/m)
+
+# payload rig, linear law, viscous damper, no hysteresis, no creep
+LINEAR = dict(rig=2, stiffness=1, damping=1, hysteresis=1, creep=False, m=M, g=G, EA=EA, L0=L0)
+
+# cubic law of the modelDescription defaults, written out so the expectation does not read the FMU
+A1, A2, A3 = 1200.0, 2.0e5, -2.0e6
+CUBIC = dict(stiffness=2, hysteresis=1, creep=False, a1=A1, a2=A2, a3=A3)
+
+
+def damped_oscillator(t, x0, v0, m, k, c):
+    """Closed-form free vibration of m x'' + c x' + k x = 0 (underdamped): x(t), v(t), amplitude."""
+    wn = np.sqrt(k / m)
+    z = c / (2.0 * np.sqrt(k * m))
+    assert z < 1.0
+    wd = wn * np.sqrt(1.0 - z * z)
+    b = (v0 + z * wn * x0) / wd
+    e = np.exp(-z * wn * t)
+    cos, sin = np.cos(wd * t), np.sin(wd * t)
+    x = e * (x0 * cos + b * sin)
+    v = e * (-z * wn * (x0 * cos + b * sin) + wd * (b * cos - x0 * sin))
+    return x, v, np.hypot(x0, b), wn
+
+
+def cubic_strain_at(T):
+    """Strain at which a1 e + a2 e^2 + a3 e^3 = T on the rising branch: smallest positive real root
+    of the cubic (numpy), polished by Newton in double precision."""
+    r = np.roots([A3, A2, A1, -T])
+    e = min(x.real for x in r if abs(x.imag) < 1e-9 * abs(x) and x.real > 0)
+    for _ in range(6):
+        e -= (e * (A1 + e * (A2 + e * A3)) - T) / (A1 + e * (2 * A2 + 3 * A3 * e))
+    return e
+
+
+# ---- 1. payload rig, linear law, viscous damper, no slack ---------------------------------------
+def test_free_vibration_matches_closed_form_damped_oscillator():
+    c0, x0, v0 = 1.5, 0.1, 0.05
+    inst = H.cs(LINEAR | dict(slack=False, c0=c0, x0=x0, v0=v0))  # rtol: the default 1e-8
+    r = H.run_cs(inst, H.grid(20.0, 0.01), ["displacement", "velocity"])
+    inst.free()
+    x, v, amp, wn = damped_oscillator(r["time"], x0, v0, M, K, c0)
+    ex = np.max(np.abs(r["displacement"] - x)) / amp
+    ev = np.max(np.abs(r["velocity"] - v)) / (amp * wn)
+    print(f"FIGURE 1a free vibration (20 s, {20 * wn / 2 / np.pi:.0f} periods, rtol 1e-8): "
+          f"max |x - x_exact| / A = {ex:.3g}, max |v - v_exact| / (A wn) = {ev:.3g}")
+    assert ex < 1e-6
+    assert ev < 1e-6
+
+
+@pytest.mark.parametrize("length", [8.0, 16.0])
+def test_static_balance_stretch_is_m_g_L0_over_EA(length):
+    inst = H.cs(LINEAR | dict(slack=False, c0=1.5, x0=0.0, v0=0.0, L0=length))
+    r = H.run_cs(inst, H.grid(2.0, 0.01), ["balance_elongation", "strain", "tension", "displacement"])
+    inst.free()
+    u_bal = M * G * length / EA
+    rel_bal = abs(r["balance_elongation"][0] - u_bal) / u_bal
+    rel_strain = np.max(np.abs(r["strain"] - M * G / EA)) / (M * G / EA)
+    rel_tension = np.max(np.abs(r["tension"] - M * G)) / (M * G)
+    print(f"FIGURE 1b L0 = {length} m: balance_elongation rel err {rel_bal:.3g}, strain at rest rel err "
+          f"{rel_strain:.3g}, tension at rest rel err {rel_tension:.3g}, max |x| {np.max(np.abs(r['displacement'])):.3g} m")
+    assert rel_bal <= 4e-16
+    assert rel_strain <= 1e-14
+    assert rel_tension <= 1e-14
+    assert np.max(np.abs(r["displacement"])) <= 1e-15 * length
+
+
+def test_energy_conserved_over_100_periods_without_damping():
+    """c0 = 0: E = m v^2 / 2 + k x^2 / 2 about the balance (gravity cancels for the linear law)."""
+    x0 = 0.1
+    period = 2 * np.pi * np.sqrt(M / K)
+    inst = H.cs(LINEAR | dict(slack=False, c0=0.0, x0=x0, v0=0.0, rtol=1e-10))
+    r = H.run_cs(inst, H.grid(100 * period, period / 50), ["displacement", "velocity"])
+    inst.free()
+    e_exact = 0.5 * K * x0 ** 2
+    energy = 0.5 * M * r["velocity"] ** 2 + 0.5 * K * r["displacement"] ** 2
+    drift = np.abs(energy - e_exact) / e_exact
+    print(f"FIGURE 1c energy, rtol 1e-10: max rel deviation over 100 periods {drift.max():.3g} "
+          f"(after 10 periods {drift[500]:.3g}, after 100 {drift[-1]:.3g})")
+    assert drift.max() < 1e-8
+
+
+# ---- 2. slack -----------------------------------------------------------------------------------
+SLACK = LINEAR | dict(slack=True, c0=1.5, v0=0.0)
+X0_LIFTED = -0.4  # 0.207 m above the slack point (balance stretch 0.1928 m)
+
+
+def taut_time(x0):
+    """Free fall x = x0 + g t^2 / 2 reaches the slack point x = -u_bal at t*."""
+    return np.sqrt(2.0 * (-x0 - M * G * L0 / EA) / G)
+
+
+def test_slack_free_fall_parabola_and_taut_event_time():
+    """Free fall before the tether tightens, tension exactly 0, and the taut event located to
+    1e-9 s. The event time is read from the FMU's 'logEvents' message (time printed with %.17g);
+    a second, log-independent check steps exactly to 2 ns before and after t*."""
+    t_star = taut_time(X0_LIFTED)
+    inst = H.cs(SLACK | dict(x0=X0_LIFTED), categories=["logEvents"])
+    r = H.run_cs(inst, H.grid(0.5, 1e-3), ["displacement", "velocity", "tension"])
+    t = r["time"]
+    before = t < t_star
+    assert before.sum() > 100
+    err_x = np.max(np.abs(r["displacement"][before] - (X0_LIFTED + G * t[before] ** 2 / 2)))
+    err_v = np.max(np.abs(r["velocity"][before] - G * t[before]))
+    events = [float(m.group(1)) for m in (re.search(r"t = ([-+0-9.eE]+) s: tether goes taut", s)
+                                          for s in inst.log.in_category("logEvents")) if m]
+    inst.free()
+    print(f"FIGURE 2a free fall until t* = {t_star:.12f} s: max |x - parabola| {err_x:.3g} m, "
+          f"max |v - g t| {err_v:.3g} m/s, max |tension| {np.max(np.abs(r['tension'][before])):.3g} N")
+    assert err_x < 1e-6
+    assert err_v < 1e-6
+    assert np.all(r["tension"][before] == 0.0)
+    assert np.all(r["tension"][~before] > 0.0)  # taut (and pulling) from t* to 0.5 s
+    assert events, "no 'tether goes taut' message in the logEvents category"
+    print(f"FIGURE 2b taut event from logEvents: t = {events[0]!r}, t* - t = {t_star - events[0]:.3g} s")
+    assert abs(events[0] - t_star) < 1e-9
+
+    # log-independent: step exactly to t* -/+ 2 ns in one communication step
+    for dt, slack_expected in [(-2e-9, True), (2e-9, False)]:
+        inst = H.cs(SLACK | dict(x0=X0_LIFTED))
+        inst.check(inst.do_step(0.0, t_star + dt), "fmi2DoStep")
+        is_slack, tension, strain = inst.get("is_slack", "tension", "strain")
+        inst.free()
+        print(f"FIGURE 2c at t* {dt:+.0e} s: is_slack {is_slack}, tension {tension:.6g} N, strain {strain:.3g}")
+        assert is_slack == slack_expected
+        assert (tension == 0.0) if slack_expected else (tension > 0.0)
+
+
+def test_damped_slack_tether_never_pushes():
+    """With a strong damper the unclamped tension EA eps + c0 u' turns negative on the rebound
+    while the tether is still stretched: the whole tension must be clamped at 0 there."""
+    c0 = 5.0
+    inst = H.cs(SLACK | dict(c0=c0, x0=0.3))
+    r = H.run_cs(inst, H.grid(10.0, 1e-3), ["tension", "strain", "velocity"])
+    inst.free()
+    raw = EA * r["strain"] + c0 * r["velocity"]  # unclamped Kelvin-Voigt tension, computed here
+    pushing = (raw < -1e-6) | (r["strain"] < -1e-12)
+    pulling = (raw > 1e-6) & (r["strain"] > 1e-12)
+    clamped_while_stretched = np.sum((raw < -1e-6) & (r["strain"] > 0))
+    print(f"FIGURE 2d damped slack (c0 = {c0}): min tension {r['tension'].min():.3g} N, samples where the "
+          f"damper would push {pushing.sum()} (of which stretched {clamped_while_stretched}); "
+          f"max |T - raw| where pulling {np.max(np.abs(r['tension'] - raw)[pulling]):.3g} N")
+    assert np.all(r["tension"] >= 0.0)
+    assert clamped_while_stretched > 0, "the case never exercised the clamp of the damper force"
+    assert np.all(r["tension"][pushing] == 0.0)
+    np.testing.assert_allclose(r["tension"][pulling], raw[pulling], rtol=1e-9, atol=1e-9)
+
+
+# ---- 3. cubic law: one law for every length --------------------------------------------------------
+LENGTHS = [8.0, 12.0, 16.0]
+LOAD = 60.0
+
+
+def test_cubic_same_strain_for_every_length_load_rig_and_payload_balance():
+    expected = cubic_strain_at(LOAD)
+    strains = {}
+    for length in LENGTHS:
+        # load rig, constant load from the start
+        inst = H.cs(CUBIC | dict(rig=3, damping=2, c0=1.5, c1=25.0, L0=length, load=LOAD))
+        r = H.run_cs(inst, H.grid(2.0, 0.1), ["strain", "tension"])
+        inst.free()
+        strains[("load rig, constant load", length)] = r["strain"][-1]
+        assert np.all(r["tension"] == LOAD)
+        # load rig, unloaded at start, the load applied after initialisation: relaxes to the same strain
+        inst = H.cs(CUBIC | dict(rig=3, damping=2, c0=1.5, c1=25.0, L0=length, load=0.0))
+        r = H.run_cs(inst, H.grid(3.0, 0.01), ["strain"], inputs=lambda t: {"load": LOAD})
+        inst.free()
+        strains[("load rig, load stepped", length)] = r["strain"][-1]
+        # payload rig: static balance under the weight m g = LOAD
+        inst = H.cs(CUBIC | dict(rig=2, damping=2, slack=True, m=LOAD / G, g=G, L0=length))
+        strains[("payload balance", length)] = inst.get("balance_elongation") / length
+        inst.free()
+    values = np.array(list(strains.values()))
+    spread = (values.max() - values.min()) / expected
+    worst = np.max(np.abs(values - expected)) / expected
+    print(f"FIGURE 3 cubic, load {LOAD} N, L0 = 8/12/16 m: expected strain {expected:.15g}; spread over lengths "
+          f"and rigs {spread:.3g} (relative), max |strain - root| / strain {worst:.3g}")
+    assert spread < 1e-9
+    assert worst < 1e-9
