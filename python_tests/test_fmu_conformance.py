@@ -209,10 +209,12 @@ def test_discard_on_overwhelming_force_reports_time_reached():
     assert discards and "fmi2DoStep" in discards[-1] and "stopped at" in discards[-1]
 
 
-def test_discard_mid_step_at_finite_time_blow_up():
+def test_discard_mid_step_when_the_payload_runs_away():
     """Released far beyond the cubic's range (slack off) the falling law pushes the payload away,
-    m x'' ~ -a3 (x / L0)^3 blows up in finite time; the step stops there with fmi2Discard, and
-    fmi2LastSuccessfulTime is the blow-up time, computed here independently with scipy."""
+    m x'' ~ -a3 (x / L0)^3 blows up in finite time. The FMU stops the step with fmi2Discard as soon
+    as the strain leaves +-100 % (TETHER_RUNAWAY_STRAIN), and fmi2LastSuccessfulTime is the last
+    good point before that instant, which is computed here independently with scipy (and lies
+    before the blow-up itself)."""
     from scipy.integrate import solve_ivp
     from scipy.optimize import brentq
     m, g, L0, a1, a2, a3, c0, c1, x0 = 4.3, 9.81, 16.0, 1200.0, 2e5, -2e6, 1.5, 25.0, 3.0
@@ -223,20 +225,26 @@ def test_discard_mid_step_at_finite_time_blow_up():
         x, v = y
         return [v, g - (force((u_bal + x) / L0) + (c0 + c1 * abs(x)) * v) / m]
 
-    escape = lambda t, y: y[0] - 1e7  # noqa: E731
-    escape.terminal = True
-    t_blow = solve_ivp(rhs, (0, 1), [x0, 0.0], method="DOP853", rtol=1e-12, atol=1e-12, events=escape).t_events[0][0]
+    def crossing(level):
+        ev = lambda t, y: y[0] - level  # noqa: E731
+        ev.terminal = True
+        return solve_ivp(rhs, (0, 1), [x0, 0.0], method="DOP853", rtol=1e-12, atol=1e-12, events=ev).t_events[0][0]
 
+    t_runaway = crossing(L0 - u_bal)   # strain (u_bal + x) / L0 reaches 1
+    t_blow = crossing(1e7)
     inst = H.cs(dict(rig=2, stiffness=2, damping=2, slack=False, m=m, g=g, L0=L0, a1=a1, a2=a2, a3=a3,
                      c0=c0, c1=c1, c2=0.0, x0=x0), categories=["logStatusDiscard"])
     status = inst.do_step(0.0, 0.5)
     st, t_reached = inst.last_successful_time()
+    messages = inst.log.in_category("logStatusDiscard")
     inst.free()
-    print(f"FIGURE 5 discard at blow-up: status {H.STATUS_NAMES[status]}, fmi2LastSuccessfulTime {t_reached:.10g} s, "
-          f"blow-up time (scipy) {t_blow:.10g} s")
+    print(f"FIGURE 5 discard at runaway: status {H.STATUS_NAMES[status]}, fmi2LastSuccessfulTime {t_reached:.10g} s, "
+          f"strain 100 % reached at {t_runaway:.10g} s (scipy), blow-up at {t_blow:.10g} s")
     assert status == fmi2Discard
     assert st == fmi2OK and 0.0 < t_reached < 0.5
-    assert abs(t_reached - t_blow) < 1e-6
+    assert t_reached <= t_runaway + 1e-9 and t_runaway - t_reached < 1e-4
+    assert t_runaway < t_blow
+    assert any("run away" in msg for msg in messages), messages
 
 
 def test_warning_when_cubic_driven_past_rising_range():

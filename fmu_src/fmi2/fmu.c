@@ -198,6 +198,7 @@ static fmi2Status initialize_model(instance *c, const char *function)
     if (n > 0) log_event(c, "%s", msg);
     c->initialized = 1;
     c->needs_reset = 1;
+    if (tether_check_range(&c->model, c->time, c->y, msg, sizeof msg)) log_warning(c, "%s", msg);
     return fmi2OK;
 }
 

@@ -18,21 +18,44 @@ double elastic_stiffness(const tether_params *p, double eps)
     return p->a1 + eps * (2.0 * p->a2 + 3.0 * eps * p->a3);
 }
 
+/* the roots of dF/deps = a1 + 2 a2 eps + 3 a3 eps^2 nearest to zero on either side */
+static void stiffness_roots(const tether_params *p, double *below, double *above)
+{
+    *below = -HUGE_VAL;
+    *above = HUGE_VAL;
+    if (p->stiffness == STIFFNESS_LINEAR) return;
+    const double a = 3.0 * p->a3, b = 2.0 * p->a2, c = p->a1;
+    if (c <= 0.0) { *below = *above = 0.0; return; }
+    double r[2];
+    int n = 0;
+    if (a == 0.0) {
+        if (b != 0.0) r[n++] = -c / b;
+    } else {
+        const double disc = b * b - 4.0 * a * c;
+        if (disc >= 0.0) {
+            const double s = sqrt(disc);
+            r[n++] = (-b - s) / (2.0 * a);
+            r[n++] = (-b + s) / (2.0 * a);
+        }
+    }
+    for (int k = 0; k < n; ++k) {
+        if (r[k] > 0.0 && r[k] < *above) *above = r[k];
+        if (r[k] < 0.0 && r[k] > *below) *below = r[k];
+    }
+}
+
 double elastic_rising_limit(const tether_params *p)
 {
-    if (p->stiffness == STIFFNESS_LINEAR) return HUGE_VAL;
-    /* smallest positive root of a1 + 2 a2 eps + 3 a3 eps^2 */
-    const double a = 3.0 * p->a3, b = 2.0 * p->a2, c = p->a1;
-    if (c <= 0.0) return 0.0;
-    if (a == 0.0) return b < 0.0 ? -c / b : HUGE_VAL;
-    const double disc = b * b - 4.0 * a * c;
-    if (disc < 0.0) return HUGE_VAL; /* a > 0 and no real root: always rising */
-    const double s = sqrt(disc);
-    const double r1 = (-b - s) / (2.0 * a), r2 = (-b + s) / (2.0 * a);
-    double best = HUGE_VAL;
-    if (r1 > 0.0 && r1 < best) best = r1;
-    if (r2 > 0.0 && r2 < best) best = r2;
-    return best;
+    double below, above;
+    stiffness_roots(p, &below, &above);
+    return above;
+}
+
+double elastic_compression_limit(const tether_params *p)
+{
+    double below, above;
+    stiffness_roots(p, &below, &above);
+    return below;
 }
 
 int elastic_strain_at(const tether_params *p, double T, double *eps)

@@ -93,9 +93,26 @@ double kawabata_stiffness(const tether_params *p, const kawabata_memory *mem, do
     return s <= 0.0 ? 0.0 : (Fa - Fb) * e * pow(s, e - 1.0) / span;
 }
 
-void kawabata_reverse(const tether_params *p, kawabata_memory *mem, double eps)
+double kawabata_strain_at(const tether_params *p, const kawabata_memory *mem, double F)
 {
-    double F = kawabata_tension(p, mem, eps);
+    const int n = mem->n;
+    if (F < 0.0) F = 0.0;
+    if (n == 0) return p->kaw_eps_ref * pow(F / p->kaw_F_ref, 1.0 / kawabata_loading_exponent(p));
+    const double ea = mem->eps[n - 1], Fa = mem->F[n - 1];
+    double eb, Fb;
+    branch_end(p, mem, &eb, &Fb);
+    const double span = mem->direction > 0 ? eb - ea : ea - eb;
+    if (!(span > 0.0) || Fa == Fb) return ea;
+    if (mem->direction > 0) {
+        const double r = (F - Fa) / (Fb - Fa);
+        return r <= 0.0 ? ea : ea + span * pow(r, 1.0 / kawabata_loading_exponent(p));
+    }
+    const double r = (F - Fb) / (Fa - Fb);
+    return r <= 0.0 ? eb : eb + span * pow(r, 1.0 / kawabata_unloading_exponent(p));
+}
+
+void kawabata_reverse(const tether_params *p, kawabata_memory *mem, double eps, double F)
+{
     if (mem->n == 1 && mem->direction < 0) {
         /* reloading from the slack end of the outer unloading branch starts at the residual
          * strain: below it the tether carries no tension */

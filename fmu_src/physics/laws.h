@@ -17,6 +17,8 @@ double elastic_tension(const tether_params *p, double eps);
 double elastic_stiffness(const tether_params *p, double eps);
 /* Largest strain up to which the law keeps rising (dF/deps > 0); HUGE_VAL if it always rises. */
 double elastic_rising_limit(const tether_params *p);
+/* Smallest (compressive) strain down to which the law keeps rising; -HUGE_VAL if it always rises. */
+double elastic_compression_limit(const tether_params *p);
 /* Strain at which the elastic law carries the tension T (T >= 0, on the rising part).
  * Returns 0 on success, -1 if T exceeds what the law can carry. */
 int elastic_strain_at(const tether_params *p, double T, double *eps);
@@ -45,9 +47,12 @@ double kawabata_virgin_tension(const tether_params *p, double eps);
 double kawabata_tension(const tether_params *p, const kawabata_memory *mem, double eps);
 /* dF/deps of the current branch */
 double kawabata_stiffness(const tether_params *p, const kawabata_memory *mem, double eps);
+/* The strain at which the current branch carries tension F (closed form; clamped to the branch's
+ * start where F lies on the far side of it, and continued past its end). */
+double kawabata_strain_at(const tether_params *p, const kawabata_memory *mem, double F);
 void kawabata_reset(kawabata_memory *mem);
-/* Reverse the direction at strain eps (pushes a turning point). */
-void kawabata_reverse(const tether_params *p, kawabata_memory *mem, double eps);
+/* Reverse the direction at the point (eps, F) of the current branch (pushes a turning point). */
+void kawabata_reverse(const tether_params *p, kawabata_memory *mem, double eps, double F);
 /* The strain the current branch runs to, where it rejoins an older branch; 0 if none. */
 int kawabata_target(const kawabata_memory *mem, double *eps_target);
 /* The current branch reached its target: remove it and its start. */

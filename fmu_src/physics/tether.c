@@ -26,13 +26,16 @@ static double input_force(const tether_model *M, double t)
     return input_polynomial(M->in.force, M->in.force_der, t - M->in.t_ref);
 }
 
+/* a hanging load pulls; it never pushes (an interpolating polynomial may dip below zero) */
 static double input_load(const tether_model *M, double t)
 {
-    return input_polynomial(M->in.load, M->in.load_der, t - M->in.t_ref);
+    const double T = input_polynomial(M->in.load, M->in.load_der, t - M->in.t_ref);
+    return T > 0.0 ? T : 0.0;
 }
 
 static double input_load_rate(const tether_model *M, double t)
 {
+    if (input_polynomial(M->in.load, M->in.load_der, t - M->in.t_ref) <= 0.0) return 0.0;
     return input_polynomial_rate(M->in.load_der, t - M->in.t_ref);
 }
 
@@ -99,17 +102,32 @@ static void evaluate(const tether_model *M, double t, const double *y, tether_in
     s->z = p->hysteresis == HYSTERESIS_BOUCWEN ? y[ST_HYSTERETIC_FORCE] : 0.0;
     s->c = damping_coefficient(p, s->x);
     if (p->rig == RIG_LOAD) {
-        /* quasi-static: the mechanical strain tracks T = F(eps_m) + z, with the load's rate fed
-         * forward and the remaining mismatch removed with time constant TETHER_LOAD_TRACKING_TIME */
+        /* quasi-static: the mechanical strain follows T = F(eps_m) + z; see tether.h */
         s->T = input_load(M, t);
         s->T_raw = s->T;
-        const double demand = input_load_rate(M, t) + (s->T - s->F - s->z) / TETHER_LOAD_TRACKING_TIME;
-        const double dir = demand >= 0.0 ? 1.0 : -1.0;
-        double K = static_stiffness(M, s->eps_m);
-        if (p->hysteresis == HYSTERESIS_BOUCWEN) K += s->L0 * boucwen_rate(p, s->x, dir, s->z) / dir;
-        const double K_floor = 1e-6 * stiffness_scale(M);
-        if (!(K > K_floor)) K = K_floor;
-        s->eps_m_rate_load = demand / K;
+        if (p->hysteresis == HYSTERESIS_BOUCWEN) {
+            /* z depends on the path: follow the tangent dF/deps_m + dz/deps_m, feeding the load's
+             * rate forward and removing the mismatch with time constant tau */
+            const double demand = input_load_rate(M, t) + (s->T - s->F - s->z) / TETHER_LOAD_TRACKING_TIME;
+            const double dir = demand >= 0.0 ? 1.0 : -1.0;
+            double K = static_stiffness(M, s->eps_m) + s->L0 * boucwen_rate(p, s->x, dir, s->z) / dir;
+            const double K_floor = 1e-6 * stiffness_scale(M);
+            if (!(K > K_floor)) K = K_floor;
+            s->eps_m_rate_load = demand / K;
+        } else {
+            /* the static law is invertible on its current branch: relax towards the strain that
+             * carries the load one tracking time ahead, T + tau T'. Exact at every hold, no lag on
+             * a ramp, and bounded where a Kawabata branch starts flat (dF/deps = 0) */
+            double ahead = s->T + TETHER_LOAD_TRACKING_TIME * input_load_rate(M, t);
+            if (ahead < 0.0) ahead = 0.0;
+            double target;
+            if (p->hysteresis == HYSTERESIS_KAWABATA) {
+                target = kawabata_strain_at(p, &M->d.kawabata, ahead);
+            } else if (elastic_strain_at(p, ahead, &target) != 0) {
+                target = elastic_rising_limit(p);
+            }
+            s->eps_m_rate_load = (target - s->eps_m) / TETHER_LOAD_TRACKING_TIME;
+        }
     } else {
         s->T_raw = s->F + s->z + s->c * s->udot;
         s->T = (slack_active(M) && !M->d.taut) ? 0.0 : s->T_raw;
@@ -282,7 +300,15 @@ int tether_event_update(tether_model *M, double t, const double *y, char *msg, s
             kawabata_memory *k = &M->d.kawabata;
             double eb;
             if (k->direction * s.eps_m_rate <= -TETHER_REVERSAL_RATE_BAND) {
-                kawabata_reverse(&M->p, k, s.eps_m);
+                if (M->p.rig == RIG_LOAD) {
+                    /* under load control the turning point carries exactly the applied load: record
+                     * it on the branch, so that a return to this load closes the loop exactly (the
+                     * branches are flat at their ends: a mismatch of 1e-8 N would shift the strain
+                     * by 1e-5) */
+                    kawabata_reverse(&M->p, k, kawabata_strain_at(&M->p, k, s.T), s.T);
+                } else {
+                    kawabata_reverse(&M->p, k, s.eps_m, s.F);
+                }
                 NOTE("t = %.17g s: Kawabata reversal to %s at strain %.9g, tension %.9g N. ", t,
                      k->direction > 0 ? "reloading" : "unloading", s.eps_m, s.F);
                 ++switches;
@@ -371,12 +397,25 @@ int tether_check_range(tether_model *M, double t, const double *y, char *msg, si
         return 0;
     tether_instant s;
     evaluate(M, t, y, &s);
-    const double limit = elastic_rising_limit(&M->p);
-    if (s.eps_m > limit && !(slack_active(M) && !M->d.taut)) {
+    if (slack_active(M) && !M->d.taut) return 0;
+    const double upper = elastic_rising_limit(&M->p), lower = elastic_compression_limit(&M->p);
+    if (s.eps_m > upper || s.eps_m < lower) {
         M->d.warned_rising_limit = 1;
-        snprintf(msg, len, "t = %.9g s: strain %.6g is beyond %.6g, where the cubic law a1 = %g, a2 = %g, "
-                 "a3 = %g stops rising (dF/deps <= 0); results there are an extrapolation of the fit",
-                 t, s.eps_m, limit, M->p.a1, M->p.a2, M->p.a3);
+        snprintf(msg, len, "t = %.9g s: strain %.6g is outside [%.6g, %.6g], where the cubic law a1 = %g, a2 = %g, "
+                 "a3 = %g rises (beyond, dF/deps <= 0); results there are an extrapolation of the fit",
+                 t, s.eps_m, lower, upper, M->p.a1, M->p.a2, M->p.a3);
+        return 1;
+    }
+    return 0;
+}
+
+int tether_runaway(const tether_model *M, double t, const double *y, char *msg, size_t len)
+{
+    tether_instant s;
+    evaluate(M, t, y, &s);
+    if (!(fabs(s.u / s.L0) <= TETHER_RUNAWAY_STRAIN)) {
+        snprintf(msg, len, "t = %.9g s: strain %.6g is beyond +-%g: the simulation has run away "
+                 "(e.g. a compressed cubic law without slack, or a violent input)", t, s.u / s.L0, TETHER_RUNAWAY_STRAIN);
         return 1;
     }
     return 0;

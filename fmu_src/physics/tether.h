@@ -12,10 +12,14 @@
  *   element  u, u' are inputs; T is the output (a force element between two bodies)
  *   payload  m x'' = m g + f(t) - T, u = u_bal + x, u_bal the balance stretch of the elastic law
  *            under m g (a mass hanging on the tether)
- *   load     the applied tension T(t) is the input; the test is slow, so inertia and damping
- *            play no part: the mechanical strain follows T = F(eps_m) + z quasi-statically,
- *            eps_m' = (T' + (T - F - z) / tau) / (dF/deps_m + dz/deps_m), with T' from the
- *            input's derivatives and tau = TETHER_LOAD_TRACKING_TIME removing any mismatch
+ *   load     the applied tension T(t) >= 0 is the input; the test is slow, so inertia and damping
+ *            play no part: the mechanical strain follows T = F(eps_m) + z quasi-statically.
+ *            Without Bouc-Wen the static law is inverted on its branch and the strain relaxes to
+ *            the strain that carries the load one tracking time ahead,
+ *            eps_m' = (eps*(T + tau T') - eps_m) / tau (exact at every hold, no lag on a ramp,
+ *            bounded where a Kawabata branch starts flat); with Bouc-Wen it follows the tangent,
+ *            eps_m' = (T' + (T - F - z) / tau) / (dF/deps_m + dz/deps_m).
+ *            T' comes from the input's derivatives; tau = TETHER_LOAD_TRACKING_TIME.
  */
 #ifndef KT_PHYSICS_TETHER_H
 #define KT_PHYSICS_TETHER_H
@@ -78,10 +82,12 @@ typedef struct {
 } tether_outputs;
 
 /* Thresholds that give the slack and reversal switches a tiny hysteresis band, so that an event
- * located by root finding is never ambiguous and a switch cannot chatter. */
+ * located by root finding is never ambiguous and a switch cannot chatter. The reversal band is a
+ * strain rate [1/s]: far above the rounding noise of a held strain (rtol eps / tau ~ 1e-9 /s in
+ * the load rig), far below any deliberate reversal (a payload reverses ~1e-6 s later than exact). */
 #define TETHER_SLACK_STRAIN_BAND 1e-13
 #define TETHER_SLACK_TENSION_BAND 1e-12
-#define TETHER_REVERSAL_RATE_BAND 1e-12
+#define TETHER_REVERSAL_RATE_BAND 1e-7
 /* load rig: time constant with which the strain catches up with the load [s] */
 #define TETHER_LOAD_TRACKING_TIME 1e-3
 
@@ -107,7 +113,13 @@ void tether_nominals(const tether_model *M, double *nominal);
 /* 1 when the problem is stiff (creep time scales, the load rig's relaxation): use BDF. */
 int tether_is_stiff(const tether_model *M);
 
-/* 1 the first time the cubic law is evaluated beyond its rising range; writes a warning. */
+/* 1 the first time the cubic law is evaluated beyond its rising range (on either side); writes a
+ * warning. */
 int tether_check_range(tether_model *M, double t, const double *y, char *msg, size_t len);
+
+/* 1 when the states have left any physical range (|strain| beyond TETHER_RUNAWAY_STRAIN): the
+ * integration stops at once rather than grinding on; writes why. */
+#define TETHER_RUNAWAY_STRAIN 1.0
+int tether_runaway(const tether_model *M, double t, const double *y, char *msg, size_t len);
 
 #endif

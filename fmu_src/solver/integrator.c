@@ -17,6 +17,8 @@
 #define N_EVENTS TETHER_NUMBER_OF_EVENT_INDICATORS
 /* a step that needs more events than this is a Zeno run (chattering) */
 #define MAX_EVENTS_PER_ADVANCE 100000L
+/* steps CVODE may take within one advance before it gives up (a stuck or runaway run) */
+#define INTEGRATOR_MAX_STEPS 200000L
 
 struct tether_integrator {
     tether_model *M;
@@ -42,7 +44,8 @@ double integrator_local_tolerance(double rtol)
 
 static int rhs(realtype t, N_Vector y, N_Vector ydot, void *user)
 {
-    const tether_integrator *I = (const tether_integrator *)user;
+    tether_integrator *I = (tether_integrator *)user;
+    if (tether_runaway(I->M, t, NV_DATA_S(y), I->error, sizeof I->error)) return -1; /* stop now */
     tether_derivatives(I->M, t, NV_DATA_S(y), NV_DATA_S(ydot));
     for (int i = 0; i < N_STATES; ++i)
         if (!isfinite(NV_Ith_S(ydot, i))) return 1; /* recoverable: CVODE retries a smaller step */
@@ -59,6 +62,7 @@ static int roots(realtype t, N_Vector y, realtype *g, void *user)
 static void on_cvode_error(int code, const char *module, const char *function, char *msg, void *user)
 {
     tether_integrator *I = (tether_integrator *)user;
+    if (I->error[0]) return; /* keep the first, most specific reason (e.g. a runaway) */
     snprintf(I->error, sizeof I->error, "%s (%s, flag %d): %s", function, module, code, msg);
 }
 
@@ -95,7 +99,7 @@ tether_integrator *integrator_create(tether_model *M, integrator_log_fn log, voi
         I->NLS = SUNNonlinSol_FixedPoint(I->y, 0, I->ctx);
         if (!I->NLS || CVodeSetNonlinearSolver(I->cvode, I->NLS) != CV_SUCCESS) goto fail;
     }
-    CVodeSetMaxNumSteps(I->cvode, 1000000L);
+    CVodeSetMaxNumSteps(I->cvode, INTEGRATOR_MAX_STEPS);
     CVodeSetMaxHnilWarns(I->cvode, -1);
     return I;
 fail:
