@@ -1,0 +1,141 @@
+"""Locate, extract and describe the KevlarTether FMU.
+
+The FMU is ``$KT_FMU`` if that variable is set, else ``<repo root>/build/KevlarTether.fmu`` (built
+by ``scripts/setup.sh``). It is extracted once per process (per FMU file and modification time)
+into a temporary directory that is removed at exit.
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import shutil
+import tempfile
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+DEFAULT_FMU = REPO_ROOT / "build" / "KevlarTether.fmu"
+SETUP_HINT = "run scripts/setup.sh in the repository (or cmake -S . -B build && cmake --build build), or set KT_FMU"
+
+
+class FMUError(RuntimeError):
+    """The FMU is missing, unreadable or failed; ``str(e)`` is one line."""
+
+
+@dataclass(frozen=True)
+class Variable:
+    name: str
+    vr: int
+    type: str              # 'Real', 'Integer', 'Enumeration', 'Boolean', 'String'
+    causality: str
+    variability: str
+    start: float | int | bool | None
+    min: float | None
+    max: float | None
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class Description:
+    """What the rest of the package needs from modelDescription.xml."""
+
+    path: Path                     # the FMU
+    guid: str
+    model_identifier: str           # co-simulation
+    variables: dict                 # name -> Variable
+    default_tolerance: float | None
+
+    @property
+    def parameters(self) -> dict:
+        """name -> Variable for every variable with causality 'parameter'."""
+        return {n: v for n, v in self.variables.items() if v.causality == "parameter"}
+
+    def vr(self, name: str) -> int:
+        return self.variables[name].vr
+
+
+def fmu_path() -> Path:
+    """The FMU to use; FMUError if it does not exist."""
+    env = os.environ.get("KT_FMU")
+    p = Path(env) if env else DEFAULT_FMU
+    if not p.is_file():
+        src = "KT_FMU" if env else "the default location"
+        raise FMUError(f"FMU not found: {p} ({src}); {SETUP_HINT}")
+    return p
+
+
+_lock = threading.Lock()
+_extracted: dict = {}      # (path, mtime, size) -> unzip dir
+_descriptions: dict = {}   # (path, mtime, size) -> Description
+
+
+def _key(path: Path):
+    st = path.stat()
+    return (str(path.resolve()), st.st_mtime_ns, st.st_size)
+
+
+def extract(path: Path | None = None) -> tuple[Path, tuple]:
+    """Extract the FMU once per process; returns (directory, cache key)."""
+    import fmpy
+
+    path = fmu_path() if path is None else Path(path)
+    key = _key(path)
+    with _lock:
+        d = _extracted.get(key)
+        if d is None:
+            d = Path(tempfile.mkdtemp(prefix="tether-fmu-"))
+            atexit.register(shutil.rmtree, d, True)
+            try:
+                fmpy.extract(str(path), unzipdir=str(d))
+            except Exception as e:  # noqa: BLE001 - a broken zip is a user-level error
+                raise FMUError(f"{path}: cannot extract the FMU ({e}); {SETUP_HINT}") from None
+            _extracted[key] = d
+    return d, key
+
+
+def model_description(path: Path | None = None) -> Description:
+    """The FMU's modelDescription (variables with value references, start, min, max)."""
+    from fmpy import read_model_description
+
+    path = fmu_path() if path is None else Path(path)
+    key = _key(path)
+    with _lock:
+        desc = _descriptions.get(key)
+    if desc is not None:
+        return desc
+    try:
+        md = read_model_description(str(path), validate=False)
+    except Exception as e:  # noqa: BLE001
+        raise FMUError(f"{path}: cannot read modelDescription.xml ({e}); {SETUP_HINT}") from None
+    if md.coSimulation is None:
+        raise FMUError(f"{path}: the FMU has no Co-Simulation interface")
+    variables = {}
+    for v in md.modelVariables:
+        t = v.type
+        start = v.start
+        if start is not None:
+            if t == "Real":
+                start = float(start)
+            elif t in ("Integer", "Enumeration"):
+                start = int(start)
+            elif t == "Boolean":
+                start = start in (True, "true", "1", 1)
+        lo = getattr(v, "min", None)
+        hi = getattr(v, "max", None)
+        if t == "Enumeration" and v.declaredType is not None:
+            vals = [int(it.value) for it in v.declaredType.items]
+            lo = min(vals) if lo is None else lo
+            hi = max(vals) if hi is None else hi
+        variables[v.name] = Variable(
+            name=v.name, vr=int(v.valueReference), type=t, causality=v.causality,
+            variability=v.variability, start=start,
+            min=None if lo is None else float(lo), max=None if hi is None else float(hi),
+            description=v.description or "")
+    tol = md.defaultExperiment.tolerance if md.defaultExperiment is not None else None
+    desc = Description(path=path, guid=md.guid, model_identifier=md.coSimulation.modelIdentifier,
+                       variables=variables, default_tolerance=None if tol is None else float(tol))
+    with _lock:
+        _descriptions[key] = desc
+    return desc
