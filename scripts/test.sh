@@ -4,7 +4,8 @@
 #   2. fmutool -check           build/KevlarTether.fmu
 #   3. ldd / nm                 build/KevlarTether.so depends on libc/libm only, exports fmi2* only
 #   4. sources/ rebuild         fmpy compile of the FMU's sources/ + simulate, same results as ours
-#   5. pytest                   python_tests (no tests collected counts as a failure)
+#   5. test_identify            the identification engine's own C++ test
+#   6. pytest                   python_tests (no tests collected counts as a failure)
 set -uo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR="${KT_BUILD_DIR:-build}"
@@ -40,6 +41,7 @@ check "fmpy validate" "$PY" -m fmpy validate "$FMU"
 check "fmutool -check" fmutool_check
 check "ldd/nm of $SO" bash scripts/check_binary.sh "$SO"
 check "fmpy compile + simulate from sources/" "$PY" scripts/check_fmu_sources.py "$FMU"
+check "identification engine (C++ test)" "$BUILD_DIR/fmu_src/identify/test_identify"
 echo "build checks: $passed passed, $failed failed"
 
 echo "==> [test] pytest python_tests"

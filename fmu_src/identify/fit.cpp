@@ -1,0 +1,487 @@
+// Levenberg-Marquardt fit of chosen parameters to several experiments jointly, with covariance,
+// confidence intervals, correlations and an identifiability analysis (SVD of the Jacobian).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "identify/engine.hpp"
+
+namespace kt {
+thread_local std::string last_error;
+}
+
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+namespace {
+
+// Student t quantile (two-sided 95 %) for dof degrees of freedom (Cornish-Fisher / Hill expansion)
+double t_quantile_975(int dof)
+{
+    const double z = 1.959963984540054;
+    if (dof <= 0) return std::numeric_limits<double>::infinity();
+    static const double table[] = {12.7062, 4.3027, 3.1824, 2.7764, 2.5706, 2.4469, 2.3646, 2.3060, 2.2622, 2.2281};
+    if (dof <= 10) return table[dof - 1];
+    const double n = dof, z3 = z * z * z, z5 = z3 * z * z, z7 = z5 * z * z, z9 = z7 * z * z;
+    return z + (z3 + z) / (4 * n) + (5 * z5 + 16 * z3 + 3 * z) / (96 * n * n) +
+           (3 * z7 + 19 * z5 + 17 * z3 - 15 * z) / (384 * n * n * n) +
+           (79 * z9 + 776 * z7 + 1482 * z5 - 1920 * z3 - 945 * z) / (92160 * n * n * n * n);
+}
+
+struct Problem {
+    std::vector<kt::Prepared> exps;
+    std::vector<int> par;      // parameter table indices of the free parameters
+    std::vector<int> log_scale; // 1 log, 0 linear
+    std::vector<double> sign, scale; // log: p = sign exp(theta); linear: p = scale theta
+    VectorXd lo, hi;           // bounds in theta
+    int n_res = 0;
+    double rtol_override = 0;
+    int n_threads = 1;
+
+    double to_p(int j, double th) const { return log_scale[j] ? sign[j] * std::exp(th) : scale[j] * th; }
+    double dp_dtheta(int j, double th) const { return log_scale[j] ? sign[j] * std::exp(th) : scale[j]; }
+    double to_theta(int j, double p) const { return log_scale[j] ? std::log(p * sign[j]) : p / scale[j]; }
+
+    // residuals at theta; false on a failed simulation
+    bool residuals(const VectorXd &th, VectorXd &r, std::string &err) const
+    {
+        r.resize(n_res);
+        int off = 0;
+        for (const kt::Prepared &pe : exps) {
+            tether_model M = pe.base;
+            if (rtol_override > 0) M.p.rtol = rtol_override;
+            for (std::size_t j = 0; j < par.size(); ++j)
+                if (!kt::set_parameter(M, par[j], to_p((int)j, th[(Eigen::Index)j]), err)) return false;
+            const kt_experiment &e = *pe.e;
+            if (!kt::simulate(pe, M, r.data() + off, err)) return false;
+            const double w = e.weight > 0 ? e.weight : 1.0;
+            for (int k = 0; k < e.n; ++k) {
+                double &v = r[off + k];
+                v = w * (v - e.measured[k]);
+                if (!std::isfinite(v)) { err = "non-finite residual"; return false; }
+            }
+            off += e.n;
+        }
+        return true;
+    }
+
+    // evaluate residuals at several points in parallel
+    void batch(const std::vector<VectorXd> &pts, std::vector<VectorXd> &rs, std::vector<char> &ok) const
+    {
+        const std::size_t m = pts.size();
+        rs.assign(m, VectorXd());
+        ok.assign(m, 0);
+        auto work = [&](std::size_t first, std::size_t stride) {
+            for (std::size_t i = first; i < m; i += stride) {
+                std::string e;
+                ok[i] = residuals(pts[i], rs[i], e) ? 1 : 0;
+            }
+        };
+        const std::size_t nt = std::min<std::size_t>((std::size_t)std::max(1, n_threads), m);
+        if (nt <= 1) { work(0, 1); return; }
+        std::vector<std::thread> th;
+        for (std::size_t i = 1; i < nt; ++i) th.emplace_back(work, i, nt);
+        work(0, nt);
+        for (auto &x : th) x.join();
+    }
+};
+
+struct Counters {
+    long evaluations = 0;
+    int iterations = 0;
+    std::vector<double> history;
+};
+
+// forward (or central) difference Jacobian at theta (r = residuals there)
+bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h, bool central, MatrixXd &J, Counters &C)
+{
+    const int k = (int)th.size();
+    std::vector<VectorXd> pts;
+    std::vector<double> steps;
+    for (int j = 0; j < k; ++j) {
+        double hj = h;
+        if (!central && th[j] + hj > P.hi[j]) hj = -h; // stay inside the box
+        VectorXd a = th;
+        a[j] += hj;
+        pts.push_back(a);
+        steps.push_back(hj);
+        if (central) {
+            VectorXd b = th;
+            b[j] -= h;
+            pts.push_back(b);
+        }
+    }
+    std::vector<VectorXd> rs;
+    std::vector<char> ok;
+    P.batch(pts, rs, ok);
+    C.evaluations += (long)pts.size();
+    J.resize(r.size(), k);
+    for (int j = 0; j < k; ++j) {
+        if (central) {
+            if (!ok[2 * j] || !ok[2 * j + 1]) return false;
+            J.col(j) = (rs[2 * j] - rs[2 * j + 1]) / (2 * h);
+        } else {
+            if (!ok[j]) return false;
+            J.col(j) = (rs[j] - r) / steps[j];
+        }
+    }
+    return true;
+}
+
+VectorXd clip(const Problem &P, const VectorXd &th) { return th.cwiseMax(P.lo).cwiseMin(P.hi); }
+
+struct LMResult {
+    VectorXd th;
+    VectorXd r;
+    double cost = std::numeric_limits<double>::infinity();
+    int status = -1;
+    std::string message;
+};
+
+LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit_options &o, Counters &C, int start_no)
+{
+    LMResult R;
+    std::string err;
+    VectorXd th = clip(P, th0), r;
+    ++C.evaluations;
+    if (!P.residuals(th, r, err)) { R.message = "the start fails to simulate: " + err; return R; }
+    double cost = 0.5 * r.squaredNorm();
+    C.history.push_back(cost);
+    double lambda = 1e-3, nu = 2.0;
+    R.status = 1;
+    R.message = "maximum number of iterations reached";
+    MatrixXd J;
+    bool need_jacobian = true;
+    for (int it = 0; it < o.max_iterations; ++it) {
+        ++C.iterations;
+        if (need_jacobian && !jacobian(P, th, r, o.fd_step, o.central_differences != 0, J, C)) {
+            R.status = -1;
+            R.message = "a Jacobian column failed to simulate";
+            break;
+        }
+        need_jacobian = false;
+        const MatrixXd A = J.transpose() * J;
+        const VectorXd g = J.transpose() * r;
+        // projected gradient: components pushing out of the box at an active bound do not count
+        double gmax = 0;
+        for (int j = 0; j < th.size(); ++j) {
+            const bool at_lo = th[j] <= P.lo[j] && g[j] > 0, at_hi = th[j] >= P.hi[j] && g[j] < 0;
+            if (!at_lo && !at_hi) gmax = std::max(gmax, std::fabs(g[j]));
+        }
+        if (gmax <= o.gtol * std::max(cost, 1e-300)) { R.status = 0; R.message = "gradient small"; break; }
+        VectorXd dscale = A.diagonal().cwiseMax(1e-12 * std::max(1e-300, A.diagonal().maxCoeff()));
+        bool accepted = false, converged = false;
+        // (the loop can try several lambdas side by side, n_cand > 1; measured: it did not save
+        // iterations on the full-model benchmark, so one candidate per try)
+        for (int tries = 0; tries < 30; ++tries) {
+            const double lams[2] = {lambda, lambda / 10.0};
+            const int n_cand = 1;
+            std::vector<VectorXd> cand, rs;
+            std::vector<char> oks;
+            std::vector<double> preds;
+            bool small = false;
+            for (int c = 0; c < n_cand; ++c) {
+                MatrixXd M = A;
+                M.diagonal() += lams[c] * dscale;
+                VectorXd tn = clip(P, th + M.ldlt().solve(-g));
+                VectorXd step = tn - th;
+                if (c == 0 && step.norm() <= o.xtol * (th.norm() + o.xtol)) { small = true; break; }
+                preds.push_back(-(g.dot(step) + 0.5 * step.dot(A * step)));
+                cand.push_back(tn);
+            }
+            if (small) { converged = true; R.message = "step small"; break; }
+            P.batch(cand, rs, oks);
+            C.evaluations += (long)cand.size();
+            int best = -1;
+            double cn = cost;
+            for (int c = 0; c < (int)cand.size(); ++c) {
+                if (!oks[(std::size_t)c]) continue;
+                const double cc = 0.5 * rs[(std::size_t)c].squaredNorm();
+                if (cc < cn) { cn = cc; best = c; }
+            }
+            if (best >= 0) {
+                const double rho = (cost - cn) / std::max(preds[(std::size_t)best], 1e-300);
+                const double rel = (cost - cn) / cost;
+                th = cand[(std::size_t)best];
+                r = rs[(std::size_t)best];
+                cost = cn;
+                lambda = lams[best];
+                C.history.push_back(cost);
+                // shrink lambda fast on good steps: the weak directions of an ill-conditioned
+                // problem move only once lambda * diag(J^T J) is below their curvature
+                if (rho > 0.5) lambda /= 10.0;
+                else if (rho > 0.25) lambda /= 3.0;
+                else if (rho < 0.1) lambda *= 2.0;
+                lambda = std::max(lambda, 1e-16);
+                nu = 2.0;
+                accepted = true;
+                if (rel < o.ftol) { converged = true; R.message = "relative cost decrease small"; }
+                const double s2 = 2.0 * cost / std::max(1, P.n_res - (int)th.size());
+                if (!converged && o.stat_tol > 0 && cost * rel < o.stat_tol * s2) {
+                    converged = true;
+                    R.message = "cost decrease far below the residual variance";
+                }
+                break;
+            }
+            lambda *= nu;
+            nu *= 2.0;
+            if (lambda > 1e16) { converged = true; R.message = "no decrease found (lambda at its limit)"; break; }
+        }
+        if (o.verbose)
+            std::fprintf(stderr, "[kt_fit] start %d it %d cost %.6e lambda %.2e evals %ld\n", start_no, it, cost, lambda,
+                         C.evaluations);
+        if (converged) { R.status = 0; break; }
+        if (!accepted) { R.status = 0; R.message = "no decrease found"; break; }
+        need_jacobian = true;
+    }
+    R.th = th;
+    R.r = r;
+    R.cost = cost;
+    return R;
+}
+
+template <class T> void put(T *dst, std::size_t i, T v) { if (dst) dst[i] = v; }
+
+} // namespace
+
+extern "C" {
+
+void kt_fit_default_options(kt_fit_options *o)
+{
+    if (!o) return;
+    std::memset(o, 0, sizeof *o);
+    o->max_iterations = 100;
+    o->ftol = 1e-10;
+    o->xtol = 1e-9;
+    o->gtol = 1e-12;
+    o->fd_step = 1e-3;
+    o->central_differences = 0;
+    o->n_starts = 1;
+    o->start_spread = 0.5;
+    o->seed = 1;
+    o->n_threads = 0;
+    o->rtol = 0;
+    o->singular_rel_tol = 1e-4;
+    o->max_rel_std = 0.5;
+    o->stat_tol = 1e-2;
+    o->output_stride = 1;
+    o->horizon_stages = 1;
+    o->verbose = 0;
+}
+
+int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const *names, const double *lower,
+           const double *upper, const double *start, const int *scaling, const kt_fit_options *options,
+           kt_fit_result *res)
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    std::string &err = kt::last_error;
+    err.clear();
+    try {
+        if (!experiments || n_exp < 1) { err = "kt_fit: no experiments"; return -1; }
+        if (k < 1 || !names || !start || !res) { err = "kt_fit: need k >= 1 names, start values and a result"; return -1; }
+        kt_fit_options o;
+        kt_fit_default_options(&o);
+        if (options) o = *options;
+        if (o.n_threads <= 0) o.n_threads = (int)std::max(1u, std::thread::hardware_concurrency());
+        if (o.n_starts < 1) o.n_starts = 1;
+        if (!(o.fd_step > 0)) o.fd_step = 1e-3;
+
+        Problem P;
+        P.n_threads = o.n_threads;
+        P.rtol_override = o.rtol;
+        P.exps.resize((std::size_t)n_exp);
+        for (int i = 0; i < n_exp; ++i) {
+            std::string e;
+            if (!experiments[i].measured) { err = "experiment " + std::to_string(i) + ": no measured samples"; return -1; }
+            if (!kt::prepare(experiments[i], 0, nullptr, P.exps[(std::size_t)i], e)) {
+                err = "experiment " + std::to_string(i) + ": " + e;
+                return -1;
+            }
+            P.exps[(std::size_t)i].stride = std::max(1, o.output_stride);
+            P.n_res += experiments[i].n;
+        }
+        // horizon stages: the same problem on the first part of each non-periodic record
+        const int n_stages = std::max(1, o.horizon_stages);
+        std::vector<std::vector<kt_experiment>> stage_exps((std::size_t)n_stages);
+        std::vector<Problem> stages((std::size_t)n_stages);
+        P.lo.resize(k);
+        P.hi.resize(k);
+        VectorXd th0(k);
+        for (int j = 0; j < k; ++j) {
+            const int idx = kt::parameter_index(names[j]);
+            if (idx < 0) { err = std::string("parameter '") + (names[j] ? names[j] : "(null)") + "': no such parameter"; return -1; }
+            if (kt::parameter_table()[(std::size_t)idx].kind == KT_PAR_SWITCH) { err = std::string("parameter '") + names[j] + "' is a switch and cannot be fitted"; return -1; }
+            for (int i = 0; i < j; ++i)
+                if (P.par[(std::size_t)i] == idx) { err = std::string("parameter '") + names[j] + "' given twice"; return -1; }
+            P.par.push_back(idx);
+            const double lo = lower ? lower[j] : -HUGE_VAL, hi = upper ? upper[j] : HUGE_VAL, s = start[j];
+            if (!(lo <= s && s <= hi) || !std::isfinite(s)) {
+                char b[256];
+                std::snprintf(b, sizeof b, "parameter '%s': start %g is outside its bounds [%g, %g]", names[j], s, lo, hi);
+                err = b;
+                return -1;
+            }
+            int sc = scaling ? scaling[j] : KT_SCALE_AUTO;
+            const bool positive = lo > 0 || (lo >= 0 && s > 0), negative = hi < 0 || (hi <= 0 && s < 0);
+            if (sc == KT_SCALE_AUTO) sc = (positive || negative) && s != 0 ? KT_SCALE_LOG : KT_SCALE_LINEAR;
+            if (sc == KT_SCALE_LOG && !((positive || negative) && s != 0)) {
+                err = std::string("parameter '") + names[j] + "': log scaling needs a start and bounds of one sign";
+                return -1;
+            }
+            P.log_scale.push_back(sc == KT_SCALE_LOG);
+            P.sign.push_back(s < 0 ? -1.0 : 1.0);
+            P.scale.push_back(s != 0 ? std::fabs(s) : 1.0);
+            if (sc == KT_SCALE_LOG) {
+                // theta increases with |p|
+                const double a = std::fabs(lo), b = std::fabs(hi);
+                const double mn = positive ? a : b, mx = positive ? b : a;
+                P.lo[j] = mn > 0 ? std::log(mn) : -HUGE_VAL;
+                P.hi[j] = std::isfinite(mx) ? std::log(mx) : HUGE_VAL;
+            } else {
+                P.lo[j] = lo / P.scale.back();
+                P.hi[j] = hi / P.scale.back();
+            }
+            th0[j] = P.to_theta(j, s);
+        }
+        if (P.n_res <= k) { err = "kt_fit: fewer residuals than parameters"; return -1; }
+        for (int sg = 0; sg < n_stages; ++sg) {
+            Problem &Q = stages[(std::size_t)sg];
+            Q = P;
+            if (sg == n_stages - 1) break;
+            const double frac = std::ldexp(1.0, -(n_stages - 1 - sg));
+            auto &ex = stage_exps[(std::size_t)sg];
+            ex.assign(experiments, experiments + n_exp);
+            Q.n_res = 0;
+            for (int i = 0; i < n_exp; ++i) {
+                kt_experiment &x = ex[(std::size_t)i];
+                if (x.periodic_samples == 0) x.n = std::max(std::min(x.n, k + 2), (int)std::ceil(x.n * frac));
+                Q.exps[(std::size_t)i].e = &x;
+                Q.n_res += x.n;
+            }
+        }
+
+        // several starts: the given one, then random ones
+        Counters C;
+        std::mt19937_64 rng(o.seed);
+        std::uniform_real_distribution<double> U(0.0, 1.0);
+        LMResult best;
+        int best_start = -1;
+        for (int st = 0; st < o.n_starts; ++st) {
+            VectorXd th = th0;
+            if (st > 0)
+                for (int j = 0; j < k; ++j) {
+                    const double a = P.lo[j], b = P.hi[j];
+                    if (std::isfinite(a) && std::isfinite(b)) th[j] = a + (b - a) * U(rng);
+                    else th[j] = th0[j] + o.start_spread * (2 * U(rng) - 1);
+                }
+            LMResult R;
+            for (int sg = 0; sg < n_stages; ++sg) {
+                // stages before the last only bring the start near the optimum: a looser stop
+                kt_fit_options os = o;
+                if (sg < n_stages - 1) os.stat_tol = std::max(o.stat_tol, 0.1);
+                R = levenberg_marquardt(stages[(std::size_t)sg], th, os, C, st);
+                if (R.status < 0) break;
+                th = R.th;
+            }
+            if (R.status >= 0 && R.cost < best.cost) { best = R; best_start = st; }
+            else if (best_start < 0 && st == o.n_starts - 1 && best.th.size() == 0) best = R;
+        }
+        if (best_start < 0) { err = "kt_fit: every start failed: " + best.message; return -1; }
+
+        // statistics at the optimum: a fresh Jacobian there
+        MatrixXd J;
+        if (!jacobian(P, best.th, best.r, o.fd_step, o.central_differences != 0, J, C)) {
+            err = "kt_fit: the Jacobian at the optimum failed to simulate";
+            return -1;
+        }
+        const int N = P.n_res, dof = N - k;
+        const double ssr = best.r.squaredNorm();
+        const double s2 = ssr / dof;
+        Eigen::JacobiSVD<MatrixXd> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);
+        const VectorXd sv = svd.singularValues();
+        const MatrixXd V = svd.matrixV();
+        const double smax = sv.size() ? sv[0] : 0.0;
+        // covariance in theta: s^2 V S^-2 V^T; in p: D cov D
+        VectorXd inv2(k);
+        for (int i = 0; i < k; ++i) inv2[i] = sv[i] > 0 ? 1.0 / (sv[i] * sv[i]) : std::numeric_limits<double>::infinity();
+        MatrixXd cov_th = s2 * V * inv2.asDiagonal() * V.transpose();
+        VectorXd D(k);
+        for (int j = 0; j < k; ++j) D[j] = P.dp_dtheta(j, best.th[j]);
+        MatrixXd cov = D.asDiagonal() * cov_th * D.asDiagonal();
+        const double tq = t_quantile_975(dof);
+
+        res->cost = best.cost;
+        res->rms = std::sqrt(ssr / N);
+        res->sigma2 = s2;
+        res->condition = sv[k - 1] > 0 ? smax / sv[k - 1] : std::numeric_limits<double>::infinity();
+        res->n_residuals = N;
+        res->dof = dof;
+        res->evaluations = (int)C.evaluations;
+        res->iterations = C.iterations;
+        res->best_start = best_start;
+        res->status = best.status;
+        std::snprintf(res->message, sizeof res->message, "%s", best.message.c_str());
+        res->cost_history_length = 0;
+        for (double c : C.history)
+            if (res->cost_history && res->cost_history_length < res->cost_history_capacity)
+                res->cost_history[res->cost_history_length++] = c;
+        for (int j = 0; j < k; ++j) {
+            const double p = P.to_p(j, best.th[j]);
+            const double se = std::sqrt(std::max(0.0, cov(j, j)));
+            put(res->values, (std::size_t)j, p);
+            put(res->std_error, (std::size_t)j, se);
+            put(res->ci_low, (std::size_t)j, p - tq * se);
+            put(res->ci_high, (std::size_t)j, p + tq * se);
+            put(res->singular_values, (std::size_t)j, sv[j]);
+            for (int i = 0; i < k; ++i) {
+                put(res->covariance, (std::size_t)(j * k + i), cov(j, i));
+                const double d = std::sqrt(cov(j, j) * cov(i, i));
+                put(res->correlation, (std::size_t)(j * k + i), d > 0 ? cov(j, i) / d : (i == j ? 1.0 : 0.0));
+                put(res->singular_vectors, (std::size_t)(j * k + i), V(j, i));
+            }
+            put(res->unidentifiable, (std::size_t)j, 0);
+        }
+        // identifiability: directions of the scaled parameters that the data hardly see
+        std::string report;
+        const double s = std::sqrt(s2);
+        for (int i = 0; i < k; ++i) {
+            const double rel = smax > 0 ? sv[i] / smax : 0.0;
+            const double sd = sv[i] > 0 ? s / sv[i] : std::numeric_limits<double>::infinity();
+            const bool flag = rel < o.singular_rel_tol || sd > o.max_rel_std;
+            put(res->direction_flags, (std::size_t)i, flag ? 1 : 0);
+            if (!flag) continue;
+            char line[512];
+            int used = std::snprintf(line, sizeof line, "direction %d: sigma/sigma_max = %.3g, std %.3g:", i, rel, sd);
+            // parameters dominating the direction, largest first
+            std::vector<int> order(k);
+            for (int j = 0; j < k; ++j) order[(std::size_t)j] = j;
+            std::sort(order.begin(), order.end(), [&](int a, int b) { return std::fabs(V(a, i)) > std::fabs(V(b, i)); });
+            for (int j : order) {
+                if (V(j, i) * V(j, i) < 0.05) break;
+                if (V(j, i) * V(j, i) >= 0.1) put(res->unidentifiable, (std::size_t)j, 1);
+                if (used < (int)sizeof line)
+                    used += std::snprintf(line + used, sizeof line - (std::size_t)used, " %+.3f %s%s", V(j, i),
+                                          P.log_scale[(std::size_t)j] ? "log " : "", names[j]);
+            }
+            report += line;
+            report += "\n";
+        }
+        std::snprintf(res->report, sizeof res->report, "%s", report.c_str());
+        res->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        return best.status;
+    } catch (const std::exception &ex) {
+        err = std::string("kt_fit: ") + ex.what();
+        return -1;
+    }
+}
+
+} // extern "C"

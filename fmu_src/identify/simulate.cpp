@@ -1,0 +1,352 @@
+// Batch simulation of one experiment with the FMU's physics, mirroring its co-simulation step
+// by step (fmu_src/fmi2/fmu.c: fmi2ExitInitializationMode, fmi2SetReal/fmi2SetRealInputDerivatives
+// on the inputs, fmi2DoStep), so that a trajectory agrees with the FMU's to round-off.
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "identify/engine.hpp"
+
+extern "C" {
+#include "model_variables.h"
+#include "solver/integrator.h"
+}
+
+namespace kt {
+
+// ---- name -> field table, generated from modelDescription.xml's variable list -------------------
+// The identifiers of the X-macros are the field names of tether_params / tether_inputs /
+// tether_outputs, so a variable without a field (or a field renamed) is a compile error.
+const std::vector<ParameterEntry> &parameter_table()
+{
+    static const std::vector<ParameterEntry> table = [] {
+        std::vector<ParameterEntry> t;
+#define KT_ENTRY_REAL(vr, id, name, kind, var, hs, st, lo, hi) KT_ENTRY_REAL_##kind(id, name, st)
+#define KT_ENTRY_REAL_KT_PARAM(id, name, st) t.push_back({name, KT_PAR_REAL, offsetof(tether_params, id), st});
+#define KT_ENTRY_REAL_KT_INPUT(id, name, st)
+#define KT_ENTRY_REAL_KT_CALC(id, name, st)
+#define KT_ENTRY_REAL_KT_OUTPUT(id, name, st)
+#define KT_ENTRY_REAL_KT_LOCAL(id, name, st)
+        KT_REAL_VARIABLES(KT_ENTRY_REAL)
+#define KT_ENTRY_INT(vr, id, name, kind, var, st, lo, hi) \
+    t.push_back({name, KT_PAR_SWITCH, offsetof(tether_params, id), (double)(st)});
+        KT_INTEGER_VARIABLES(KT_ENTRY_INT)
+#define KT_ENTRY_BOOL(vr, id, name, kind, var, st) KT_ENTRY_BOOL_##kind(id, name, st)
+#define KT_ENTRY_BOOL_KT_PARAM(id, name, st) t.push_back({name, KT_PAR_SWITCH, offsetof(tether_params, id), (double)(st)});
+#define KT_ENTRY_BOOL_KT_LOCAL(id, name, st)
+        KT_BOOLEAN_VARIABLES(KT_ENTRY_BOOL)
+        // the only input that is a constant of an experiment
+        t.push_back({"L0", KT_PAR_INPUT, offsetof(tether_inputs, L0), 0.0});
+        return t;
+    }();
+    return table;
+}
+
+int parameter_index(const char *name)
+{
+    if (!name) return -1;
+    const auto &t = parameter_table();
+    for (std::size_t i = 0; i < t.size(); ++i)
+        if (std::strcmp(t[i].name, name) == 0) return (int)i;
+    return -1;
+}
+
+tether_model start_model()
+{
+    // the same as fmu.c's set_start_values
+    tether_model M;
+    std::memset(&M, 0, sizeof M);
+#define KT_START_REAL(vr, id, name, kind, var, hs, st, lo, hi) KT_START_REAL_##kind(id, st)
+#define KT_START_REAL_KT_PARAM(id, st) M.p.id = st;
+#define KT_START_REAL_KT_INPUT(id, st) M.in.id = st;
+#define KT_START_REAL_KT_CALC(id, st)
+#define KT_START_REAL_KT_OUTPUT(id, st)
+#define KT_START_REAL_KT_LOCAL(id, st)
+    KT_REAL_VARIABLES(KT_START_REAL)
+#define KT_START_INT(vr, id, name, kind, var, st, lo, hi) M.p.id = st;
+    KT_INTEGER_VARIABLES(KT_START_INT)
+#define KT_START_BOOL(vr, id, name, kind, var, st) KT_START_BOOL_##kind(id, st)
+#define KT_START_BOOL_KT_PARAM(id, st) M.p.id = st;
+#define KT_START_BOOL_KT_LOCAL(id, st)
+    KT_BOOLEAN_VARIABLES(KT_START_BOOL)
+    return M;
+}
+
+bool set_parameter(tether_model &M, int index, double value, std::string &err)
+{
+    const auto &t = parameter_table();
+    if (index < 0 || index >= (int)t.size()) {
+        err = "unknown parameter index " + std::to_string(index);
+        return false;
+    }
+    const ParameterEntry &e = t[(std::size_t)index];
+    if (!std::isfinite(value)) {
+        err = std::string(e.name) + " = " + std::to_string(value) + " is not finite";
+        return false;
+    }
+    char *base = e.kind == KT_PAR_INPUT ? reinterpret_cast<char *>(&M.in) : reinterpret_cast<char *>(&M.p);
+    if (e.kind == KT_PAR_SWITCH) {
+        int v = (int)std::lround(value);
+        std::memcpy(base + e.offset, &v, sizeof v);
+    } else {
+        std::memcpy(base + e.offset, &value, sizeof value);
+    }
+    return true;
+}
+
+double get_parameter(const tether_model &M, int index)
+{
+    const ParameterEntry &e = parameter_table()[(std::size_t)index];
+    const char *base = e.kind == KT_PAR_INPUT ? reinterpret_cast<const char *>(&M.in) : reinterpret_cast<const char *>(&M.p);
+    if (e.kind == KT_PAR_SWITCH) {
+        int v;
+        std::memcpy(&v, base + e.offset, sizeof v);
+        return v;
+    }
+    double v;
+    std::memcpy(&v, base + e.offset, sizeof v);
+    return v;
+}
+
+bool output_offset(const char *name, std::size_t &offset)
+{
+    if (!name) name = "displacement";
+#define KT_OUT(vr, id, nm, kind, var, hs, st, lo, hi) KT_OUT_##kind(id, nm)
+#define KT_OUT_KT_PARAM(id, nm)
+#define KT_OUT_KT_INPUT(id, nm)
+#define KT_OUT_KT_CALC(id, nm) if (std::strcmp(name, nm) == 0) { offset = offsetof(tether_outputs, id); return true; }
+#define KT_OUT_KT_OUTPUT(id, nm) KT_OUT_KT_CALC(id, nm)
+#define KT_OUT_KT_LOCAL(id, nm) KT_OUT_KT_CALC(id, nm)
+    KT_REAL_VARIABLES(KT_OUT)
+    // the FMU reports the computed elongation for the payload and load rigs
+    if (std::strcmp(name, "elongation") == 0) { offset = offsetof(tether_outputs, elongation); return true; }
+    return false;
+}
+
+bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prepared &p, std::string &err)
+{
+    p.e = &e;
+    p.base = start_model();
+    if (e.n < 2 || !e.time) { err = "an experiment needs n >= 2 samples and a time grid"; return false; }
+    for (int k = 0; k + 1 < e.n; ++k)
+        if (!(e.time[k + 1] > e.time[k])) {
+            char b[160];
+            std::snprintf(b, sizeof b, "time[%d] = %.17g is not after time[%d] = %.17g", k + 1, e.time[k + 1], k, e.time[k]);
+            err = b;
+            return false;
+        }
+    if (e.input_kind != KT_INPUT_NONE && e.input_kind != KT_INPUT_FORCE && e.input_kind != KT_INPUT_LOAD) {
+        err = "input_kind = " + std::to_string(e.input_kind) + ": expected 0 (none), 1 (force) or 2 (load)";
+        return false;
+    }
+    if (e.input_kind != KT_INPUT_NONE && !e.input) { err = "input_kind is set but input is NULL"; return false; }
+    if (e.periodic_samples < 0 || e.periodic_samples == 1 || (e.periodic_samples > 0 && e.n % e.periodic_samples != 0)) {
+        err = "periodic_samples = " + std::to_string(e.periodic_samples) + " must be 0 or >= 2 and divide n = " + std::to_string(e.n);
+        return false;
+    }
+    for (int i = 0; i < e.n_settings; ++i) {
+        const int idx = parameter_index(e.setting_names[i]);
+        if (idx < 0) { err = std::string("setting '") + (e.setting_names[i] ? e.setting_names[i] : "(null)") + "': no such parameter"; return false; }
+        if (!set_parameter(p.base, idx, e.setting_values[i], err)) return false;
+    }
+    p.outputs.clear();
+    if (n_out <= 0) {
+        std::size_t off;
+        if (!output_offset(e.output, off)) { err = std::string("output '") + e.output + "': not a Real output or local variable"; return false; }
+        p.outputs.push_back(off);
+    } else {
+        for (int i = 0; i < n_out; ++i) {
+            std::size_t off;
+            if (!output_offset(outputs[i], off)) { err = std::string("output '") + (outputs[i] ? outputs[i] : "(null)") + "': not a Real output or local variable"; return false; }
+            p.outputs.push_back(off);
+        }
+    }
+    return true;
+}
+
+namespace {
+
+struct IntegratorGuard {
+    tether_integrator *I = nullptr;
+    ~IntegratorGuard() { integrator_free(I); }
+};
+
+// what an importer's fmi2SetReal(input) + fmi2SetRealInputDerivatives does (fmu.c): the value and
+// derivatives are stored, a change asks for a restart, and the polynomial starts at the FMU's time
+bool set_input(tether_model &M, const kt_experiment &e, int k, double t)
+{
+    bool changed = false;
+    double *value = e.input_kind == KT_INPUT_FORCE ? &M.in.force : &M.in.load;
+    double *der = e.input_kind == KT_INPUT_FORCE ? M.in.force_der : M.in.load_der;
+    if (*value != e.input[k]) { *value = e.input[k]; changed = true; }
+    for (int j = 0; j < TETHER_INPUT_DERIVATIVE_ORDER; ++j) {
+        const double d = e.input_der ? e.input_der[3 * k + j] : 0.0;
+        if (der[j] != d) { der[j] = d; changed = true; }
+    }
+    M.in.t_ref = t;
+    return changed;
+}
+
+} // namespace
+
+bool simulate(const Prepared &p, const tether_model &M0, double *out, std::string &err)
+{
+    const kt_experiment &e = *p.e;
+    tether_model M = M0; // by value: the integrator reads it through a pointer
+    const int n = e.n;
+    const int P = e.periodic_samples;
+    const bool has_input = e.input_kind != KT_INPUT_NONE;
+    const std::size_t n_out = p.outputs.size();
+    char msg[1024];
+    double y[TETHER_NUMBER_OF_STATES];
+
+    double t = e.time[0];
+    // inputs at the first sample are set before the initialisation (the load rig starts from them)
+    if (has_input) set_input(M, e, 0, t);
+    // fmi2ExitInitializationMode -> initialize_model
+    M.in.t_ref = t;
+    if (tether_initialize(&M, t, y, msg, sizeof msg) != 0) { err = msg; return false; }
+    tether_event_update(&M, t, y, msg, sizeof msg);
+    tether_check_range(&M, t, y, msg, sizeof msg);
+    IntegratorGuard G;
+    G.I = integrator_create(&M, nullptr, nullptr, msg, sizeof msg);
+    if (!G.I) { err = msg; return false; }
+    bool needs_reset = true;
+
+    // periodic steady state: virtual sample s -> input sample s mod P, time time[s mod P] + (s / P) Tp
+    const double Tp = P > 0 ? (n > P ? e.time[P] - e.time[0] : (e.time[P - 1] - e.time[0]) * P / (P - 1.0)) : 0.0;
+    auto sample_time = [&](long s) -> double {
+        if (P <= 0) return e.time[s];
+        return e.time[s % P] + (double)(s / P) * Tp;
+    };
+    auto input_index = [&](long s) -> int { return P > 0 ? (int)(s % P) : (int)s; };
+
+    long s = 0;           // virtual sample we are at
+    long record_start = 0; // first virtual sample of the record
+    std::vector<double> cycle, previous;
+
+    // one step: the inputs of sample s, the outputs there, then fmi2DoStep to sample s + 1
+    auto step = [&](double *o, bool last) -> bool {
+        if (s > 0 && has_input && set_input(M, e, input_index(s), t)) needs_reset = true;
+        if (o) {
+            tether_outputs to;
+            tether_compute_outputs(&M, t, y, &to);
+            const char *base = reinterpret_cast<const char *>(&to);
+            for (std::size_t j = 0; j < n_out; ++j) std::memcpy(o + j, base + p.outputs[j], sizeof(double));
+        }
+        if (last) return true;
+        if (needs_reset) {
+            tether_event_update(&M, t, y, msg, sizeof msg);
+            if (integrator_reset(G.I, t, y) != 0) { err = std::string("could not restart CVODE: ") + integrator_error(G.I); return false; }
+            needs_reset = false;
+        }
+        const double t_next = sample_time(s + 1);
+        const double t_end = t + (t_next - t); // fmi2DoStep(t, t_next - t)
+        double t_reached = t;
+        if (integrator_advance(G.I, t_end, &t_reached, y) != 0) {
+            char b[1200];
+            std::snprintf(b, sizeof b, "the step from %.17g s to %.17g s stopped at %.17g s: %s", t, t_end, t_reached,
+                          integrator_error(G.I));
+            err = b;
+            return false;
+        }
+        t = t_end;
+        tether_check_range(&M, t, y, msg, sizeof msg);
+        ++s;
+        return true;
+    };
+
+    if (P > 0) {
+        const double tol = e.periodic_tol > 0 ? e.periodic_tol : 1e-7;
+        const int max_periods = e.periodic_max_periods > 0 ? e.periodic_max_periods : 400;
+        cycle.resize((std::size_t)P * n_out);
+        for (int c = 0; c < max_periods; ++c) {
+            for (int j = 0; j < P; ++j)
+                if (!step(&cycle[(std::size_t)j * n_out], false)) return false;
+            if (!previous.empty()) {
+                double diff = 0.0, amp = 0.0;
+                for (std::size_t i = 0; i < cycle.size(); ++i) {
+                    diff = std::max(diff, std::fabs(cycle[i] - previous[i]));
+                    amp = std::max(amp, std::fabs(cycle[i]));
+                }
+                if (diff <= tol * amp) break;
+            }
+            previous.swap(cycle);
+            cycle.resize((std::size_t)P * n_out);
+        }
+        record_start = s;
+    }
+    (void)record_start;
+    const int stride = (P == 0 && !has_input) ? std::max(1, p.stride) : 1;
+    if (stride == 1) {
+        for (int k = 0; k < n; ++k)
+            if (!step(out + (std::size_t)k * n_out, k == n - 1)) return false;
+        return true;
+    }
+    // fast mode: one integrator call per chunk of samples, Hermite interpolation inside
+    auto outputs_at = [&](double tt, const double *yy, double *o) {
+        tether_outputs to;
+        tether_compute_outputs(&M, tt, yy, &to);
+        const char *base = reinterpret_cast<const char *>(&to);
+        for (std::size_t j = 0; j < n_out; ++j) std::memcpy(o + j, base + p.outputs[j], sizeof(double));
+    };
+    constexpr int NS = TETHER_NUMBER_OF_STATES;
+    int k = 0;
+    while (k < n - 1) {
+        const int k2 = std::min(n - 1, k + stride);
+        if (needs_reset) {
+            tether_event_update(&M, t, y, msg, sizeof msg);
+            if (integrator_reset(G.I, t, y) != 0) { err = std::string("could not restart CVODE: ") + integrator_error(G.I); return false; }
+            needs_reset = false;
+        }
+        outputs_at(t, y, out + (std::size_t)k * n_out);
+        const tether_model M_saved = M;
+        double y0[NS], f0[NS], f1[NS];
+        std::memcpy(y0, y, sizeof y0);
+        tether_derivatives(&M, t, y0, f0);
+        integrator_stats st0, st1;
+        integrator_get_stats(G.I, &st0);
+        const double t0c = t, t1c = e.time[k2];
+        double t_reached = t;
+        if (integrator_advance(G.I, t1c, &t_reached, y) != 0) {
+            char b[1200];
+            std::snprintf(b, sizeof b, "the step from %.17g s to %.17g s stopped at %.17g s: %s", t, t1c, t_reached,
+                          integrator_error(G.I));
+            err = b;
+            return false;
+        }
+        integrator_get_stats(G.I, &st1);
+        if (st1.events != st0.events) {
+            // a discrete switch inside the chunk: redo it sample by sample from its start
+            M = M_saved;
+            std::memcpy(y, y0, sizeof y0);
+            t = t0c;
+            s = k;
+            needs_reset = true;
+            for (int j = k; j < k2; ++j)
+                if (!step(out + (std::size_t)j * n_out, false)) return false;
+            k = k2;
+            continue;
+        }
+        t = t1c;
+        s = k2;
+        tether_derivatives(&M, t, y, f1);
+        const double h = t1c - t0c;
+        for (int j = k + 1; j < k2; ++j) {
+            const double u = (e.time[j] - t0c) / h, u2 = u * u, u3 = u2 * u;
+            const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u, h01 = -2 * u3 + 3 * u2, h11 = u3 - u2;
+            double yi[NS];
+            for (int i = 0; i < NS; ++i) yi[i] = h00 * y0[i] + h10 * h * f0[i] + h01 * y[i] + h11 * h * f1[i];
+            outputs_at(e.time[j], yi, out + (std::size_t)j * n_out);
+        }
+        k = k2;
+    }
+    outputs_at(t, y, out + (std::size_t)(n - 1) * n_out);
+    return true;
+}
+
+} // namespace kt

@@ -1,0 +1,246 @@
+"""The native identification engine (fmu_src/identify, python/tether/identify_native.py).
+
+1. it runs the FMU's physics: its trajectories equal the FMU's through fmpy (one fmi2DoStep per
+   sample, inputs set with their spline derivatives) to 1e-9;
+2. a synthetic noisy trace from known parameters: the fit recovers them within their 95 % intervals;
+3. a joint fit over the paper's two free-vibration traces (x0 = -0.1669 and -0.1184 m, m = 4.3 kg,
+   L0 = 16 m) with one shared parameter set;
+4. the full model on one free-vibration trace: the report names the parameters the data cannot
+   determine.
+The engine library: env KT_IDENTIFY_LIB, else build/fmu_src/identify/libtether_identify.so.
+The FMU: env KT_FMU, else build/KevlarTether.fmu, else /tmp/KT.fmu.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "python"))
+from tether import identify_native as idn  # noqa: E402
+
+PAYLOAD = {"rig": 2, "m": 4.3, "L0": 16.0, "g": 9.81}
+FULL = dict(PAYLOAD, stiffness=2, damping=2, hysteresis=3)
+SIMPLE = dict(PAYLOAD, stiffness=2, damping=2, hysteresis=1)  # the paper's simplified dynamic model
+TRUTH_FULL = {"a1": 1200.0, "a2": 2e5, "a3": -2e6, "c0": 1.5, "c1": 25.0, "c2": 50.0,
+              "bw_A": 60.0, "bw_beta": 15.0, "bw_gamma": 5.0}
+TRUTH_SIMPLE = {"a1": 1200.0, "a2": 2e5, "a3": -2e6, "c0": 1.5, "c1": 25.0}
+
+
+def _fmu_path() -> Path:
+    for p in (os.environ.get("KT_FMU"), REPO / "build" / "KevlarTether.fmu", "/tmp/KT.fmu"):
+        if p and Path(p).is_file():
+            return Path(p)
+    pytest.skip("no FMU (set KT_FMU or build build/KevlarTether.fmu)")
+
+
+def _model_description() -> Path:
+    return REPO / "modelDescription.xml"
+
+
+def run_fmu(fmu: Path, time, settings, output="displacement", input_name=None, inp=None, der=None):
+    """Co-simulation through fmpy, one fmi2DoStep per sample; the input and its derivatives of
+    order 1..3 are set at every sample before the step (and before leaving initialization)."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(fmu))
+    var = {v.name: v for v in md.modelVariables}
+    d = extract(str(fmu))
+    s = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
+                  instanceName="engine_vs_fmu")
+    try:
+        s.instantiate()
+        s.setupExperiment(startTime=float(time[0]))
+        for n, v in settings.items():
+            ty, vr = var[n].type, [var[n].valueReference]
+            if ty == "Real":
+                s.setReal(vr, [float(v)])
+            elif ty == "Boolean":
+                s.setBoolean(vr, [bool(v)])
+            else:
+                s.setInteger(vr, [int(v)])
+        s.enterInitializationMode()
+        ivr = [var[input_name].valueReference] * 3 if input_name else None
+
+        def set_input(k):
+            s.setReal(ivr[:1], [float(inp[k])])
+            s.setRealInputDerivatives(ivr, [1, 2, 3], [float(v) for v in der[k]])
+
+        if input_name:
+            set_input(0)
+        s.exitInitializationMode()
+        ovr = [var[output].valueReference]
+        out = np.empty(len(time))
+        for k in range(len(time)):
+            if input_name:
+                set_input(k)
+            out[k] = s.getReal(ovr)[0]
+            if k + 1 < len(time):
+                s.doStep(float(time[k]), float(time[k + 1] - time[k]))  # raises on an error
+        s.terminate()
+    finally:
+        s.freeInstance()
+    return out
+
+
+# ---- the parameter table --------------------------------------------------------------------------
+def test_parameter_table_covers_every_parameter_of_the_model_description():
+    root = ET.parse(_model_description()).getroot()
+    reals, others = [], []
+    for sv in root.iter("ScalarVariable"):
+        if sv.get("causality") != "parameter":
+            continue
+        (reals if sv.find("Real") is not None else others).append(sv.get("name"))
+    assert reals, "no Real parameters found in modelDescription.xml"
+    table_reals = idn.parameter_names(kind=0)
+    missing = sorted(set(reals) - set(table_reals))
+    extra = sorted(set(table_reals) - set(reals))
+    assert not missing, f"Real parameters of modelDescription.xml the engine cannot address: {missing}"
+    assert not extra, f"engine names that are not Real parameters of modelDescription.xml: {extra}"
+    assert set(others) <= set(idn.parameter_names(kind=1))
+    assert "L0" in idn.parameter_names(kind=2)
+    # start values agree with the XML
+    for sv in root.iter("ScalarVariable"):
+        r = sv.find("Real")
+        if sv.get("causality") == "parameter" and r is not None and r.get("start") is not None:
+            assert idn.parameter_start(sv.get("name")) == pytest.approx(float(r.get("start")), rel=1e-15)
+
+
+# ---- 1. the same trajectory as the FMU ------------------------------------------------------------
+def test_free_vibration_full_model_equals_fmu():
+    fmu = _fmu_path()
+    t = np.arange(5001) * 1e-3
+    settings = dict(FULL, x0=-0.1669, **TRUTH_FULL)
+    x_fmu = run_fmu(fmu, t, settings)
+    x_eng = idn.simulate(idn.Experiment(t, settings=settings))
+    assert np.ptp(x_eng) > 0.2  # a real oscillation
+    assert np.max(np.abs(x_eng - x_fmu)) <= 1e-9
+
+
+def test_forced_spline_input_equals_fmu():
+    fmu = _fmu_path()
+    t = np.arange(4001) * 1e-3
+    f = 6.0 * np.sin(2 * np.pi * 1.3 * t) + 3.0 * np.sin(2 * np.pi * 3.7 * t + 1.0)
+    der = idn.spline_derivatives(t, f)
+    settings = dict(FULL, x0=0.0, **TRUTH_FULL)
+    x_fmu = run_fmu(fmu, t, settings, input_name="force", inp=f, der=der)
+    e = idn.Experiment(t, settings=settings, input_kind=idn.INPUT_FORCE, input=f, input_der=der)
+    x_eng = idn.simulate(e)
+    assert np.ptp(x_eng) > 0.01
+    assert np.max(np.abs(x_eng - x_fmu)) <= 1e-9
+    # tension too (an output that depends on every state)
+    T_fmu = run_fmu(fmu, t, settings, output="tension", input_name="force", inp=f, der=der)
+    T_eng = idn.simulate(e, outputs=["tension"])[:, 0]
+    assert np.max(np.abs(T_eng - T_fmu)) <= 1e-9 * max(1.0, np.max(np.abs(T_fmu)))
+
+
+def test_load_rig_spline_input_equals_fmu():
+    fmu = _fmu_path()
+    t = np.arange(2001) * 1e-2
+    load = 5.0 + 40.0 * np.sin(np.pi * t / 20.0) ** 2
+    der = idn.spline_derivatives(t, load)
+    settings = {"rig": 3, "stiffness": 2, "hysteresis": 2, "L0": 16.0}
+    u_fmu = run_fmu(fmu, t, settings, output="elongation", input_name="load", inp=load, der=der)
+    e = idn.Experiment(t, settings=settings, input_kind=idn.INPUT_LOAD, input=load, input_der=der, output="elongation")
+    u_eng = idn.simulate(e)
+    assert np.max(np.abs(u_eng - u_fmu)) <= 1e-9
+
+
+# ---- 2. recovery of known parameters ---------------------------------------------------------------
+def _synthetic(settings, truth, n, noise, seed):
+    t = np.arange(n) * 1e-3
+    e = idn.Experiment(t, settings=settings)
+    e.measured = idn.simulate(e, truth) + noise * np.random.default_rng(seed).standard_normal(n)
+    return e
+
+
+def _free(truth, factors):
+    out = {}
+    for n, v in truth.items():
+        s = v * factors.get(n, 1.0)
+        lo, hi = sorted((s / 20, s * 20))
+        out[n] = (lo, hi, s)
+    return out
+
+
+def test_fit_recovers_known_parameters_within_their_intervals():
+    e = _synthetic(dict(SIMPLE, x0=-0.1669), TRUTH_SIMPLE, 8001, 2e-4, seed=100)
+    free = _free(TRUTH_SIMPLE, {"a1": 1.1, "a2": 0.9, "a3": 0.85, "c0": 1.3, "c1": 0.8})
+    r = idn.fit([e], free, output_stride=20, horizon_stages=3)
+    assert r.status == 0, r.message
+    assert r.rms == pytest.approx(2e-4, rel=0.05)   # down to the noise
+    for n, v, lo, hi in zip(r.names, r.values, r.ci_low, r.ci_high):
+        assert lo <= TRUTH_SIMPLE[n] <= hi, f"{n}: truth {TRUTH_SIMPLE[n]} outside [{lo}, {hi}] (fit {v})"
+        assert hi - lo < 0.2 * abs(TRUTH_SIMPLE[n])
+    assert not r.unidentifiable, r.report
+    assert np.allclose(np.diag(r.correlation), 1.0)
+    assert r.cost_history[0] > r.cost_history[-1] and r.evaluations > 0
+
+
+# ---- 3. joint fit over the paper's two release amplitudes ---------------------------------------
+def test_joint_fit_over_two_release_amplitudes():
+    truth = TRUTH_SIMPLE
+    e1 = _synthetic(dict(SIMPLE, x0=-0.1669), truth, 6001, 2e-4, seed=5)
+    e2 = _synthetic(dict(SIMPLE, x0=-0.1184), truth, 6001, 2e-4, seed=6)
+    free = _free(truth, {"a1": 0.9, "a2": 1.1, "a3": 1.2, "c0": 0.8, "c1": 1.2})
+    r = idn.fit([e1, e2], free, output_stride=20, horizon_stages=3)
+    assert r.status == 0, r.message
+    assert r.n_residuals == 12002 and r.dof == 12002 - 5
+    for n, lo, hi in zip(r.names, r.ci_low, r.ci_high):
+        assert lo <= truth[n] <= hi, f"{n}: truth {truth[n]} outside [{lo}, {hi}]"
+    # one parameter set serves both amplitudes: each trace is matched down to the noise
+    p = r.as_dict()
+    for e in (e1, e2):
+        assert np.sqrt(np.mean((idn.simulate(e, p) - e.measured) ** 2)) == pytest.approx(2e-4, rel=0.05)
+    # and the joint fit determines the parameters better than the larger amplitude alone
+    r1 = idn.fit([e1], free, output_stride=20, horizon_stages=3)
+    assert np.all(r.std_error <= r1.std_error * 1.05)
+
+
+# ---- 4. the full model on one trace: what the data cannot determine -----------------------------
+def test_full_model_on_one_trace_flags_unidentifiable_parameters():
+    e = _synthetic(dict(FULL, x0=-0.1184), TRUTH_FULL, 10001, 1e-3, seed=7)
+    free = _free(TRUTH_FULL, {"a1": 1.05, "a2": 0.95, "a3": 0.9, "c0": 1.1, "c1": 0.9, "c2": 1.2,
+                              "bw_A": 0.9, "bw_beta": 1.1, "bw_gamma": 0.9})
+    r = idn.fit([e], free, output_stride=20, horizon_stages=3)
+    assert r.rms == pytest.approx(1e-3, rel=0.05)
+    assert r.unidentifiable, f"nothing flagged; singular values {r.singular_values}"
+    assert r.report.strip().startswith("direction")
+    for name in r.unidentifiable:
+        assert name in r.report and name in TRUTH_FULL
+    assert "c2" in r.unidentifiable  # the quadratic damping term trades off against the rest
+    flagged = np.flatnonzero(r.direction_flags)
+    assert flagged.size >= 1
+    # a flagged direction is a near-null direction of the Jacobian (large uncertainty)
+    assert r.condition > 1e3
+
+
+# ---- periodic steady state (trace-format periodic_samples) --------------------------------------
+def test_periodic_steady_state_equals_a_long_run_from_rest():
+    P, periods = 500, 2
+    dt = 2e-3                                  # 1 Hz forcing, 500 samples per period
+    tp = np.arange(P) * dt
+    f1 = 8.0 * np.sin(2 * np.pi * tp) + 2.0 * np.sin(6 * np.pi * tp)
+    d1 = idn.spline_derivatives(tp, f1, periodic=True)
+    settings = {"rig": 2, "stiffness": 1, "damping": 1, "hysteresis": 1, "m": 4.3, "L0": 16.0,
+                "EA": 3500.0, "c0": 20.0}
+    t = np.arange(P * periods) * dt
+    e = idn.Experiment(t, settings=settings, input_kind=idn.INPUT_FORCE, input=np.tile(f1, periods),
+                       input_der=np.tile(d1, (periods, 1)), periodic_samples=P, periodic_tol=1e-10)
+    x = idn.simulate(e)
+    # the same input repeated from rest for 40 periods, non-periodic: its last periods
+    n_long = 40
+    tl = np.arange(P * n_long) * dt
+    el = idn.Experiment(tl, settings=settings, input_kind=idn.INPUT_FORCE, input=np.tile(f1, n_long),
+                        input_der=np.tile(d1, (n_long, 1)))
+    xl = idn.simulate(el)
+    amp = np.max(np.abs(x))
+    assert amp > 1e-3
+    assert np.max(np.abs(x - xl[-P * periods:])) <= 1e-8 * amp
+    assert np.max(np.abs(x[:P] - x[P:])) <= 1e-8 * amp   # the record is periodic
