@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from typing import Sequence
 
@@ -55,28 +53,13 @@ def check_output_path(out: str, trace: Trace | None = None) -> Path:
 
 
 def write_csv_atomic(path: Path, names: Sequence[str], columns: Sequence[np.ndarray]) -> None:
-    """Write columns as CSV (full double precision) via a temporary file and a rename."""
-    path = Path(path)
+    """Write columns as CSV (full double precision), atomically (see :mod:`tether.atomic`)."""
+    from ..atomic import write_with
+
     data = np.column_stack([np.asarray(c, dtype=float) for c in columns])
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent or "."))
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(",".join(names) + "\n")
-            np.savetxt(f, data, delimiter=",", fmt="%.17g")
-            f.flush()
-            os.fsync(f.fileno())
-        _default_mode(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
+    def fill(f):
+        f.write(",".join(names) + "\n")
+        np.savetxt(f, data, delimiter=",", fmt="%.17g")
 
-def _default_mode(path: str) -> None:
-    """mkstemp creates 0600; give the file the mode a plain open() would (0666 & ~umask)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(path, 0o666 & ~mask)
+    write_with(path, fill)
