@@ -147,7 +147,8 @@ struct LMResult {
     std::string message;
 };
 
-LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit_options &o, Counters &C, int start_no)
+LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit_options &o, Counters &C, int start_no,
+                             int stage = 0, int n_stages = 1)
 {
     LMResult R;
     std::string err;
@@ -239,6 +240,11 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
         if (o.verbose)
             std::fprintf(stderr, "[kt_fit] start %d it %d cost %.6e lambda %.2e evals %ld\n", start_no, it, cost, lambda,
                          C.evaluations);
+        if (o.progress && o.progress(o.progress_ctx, start_no, stage, n_stages, it, cost, C.evaluations) != 0) {
+            R.status = -2;
+            R.message = "stopped by the progress callback";
+            break;
+        }
         if (converged) { R.status = 0; break; }
         if (!accepted) { R.status = 0; R.message = "no decrease found"; break; }
         need_jacobian = true;
@@ -276,6 +282,8 @@ void kt_fit_default_options(kt_fit_options *o)
     o->output_stride = 1;
     o->horizon_stages = 1;
     o->verbose = 0;
+    o->progress = nullptr;
+    o->progress_ctx = nullptr;
 }
 
 int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const *names, const double *lower,
@@ -388,7 +396,8 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
                 // stages before the last only bring the start near the optimum: a looser stop
                 kt_fit_options os = o;
                 if (sg < n_stages - 1) os.stat_tol = std::max(o.stat_tol, 0.1);
-                R = levenberg_marquardt(stages[(std::size_t)sg], th, os, C, st);
+                R = levenberg_marquardt(stages[(std::size_t)sg], th, os, C, st, sg, n_stages);
+                if (R.status == -2) { err = "kt_fit: " + R.message; return -1; }
                 if (R.status < 0) break;
                 th = R.th;
             }

@@ -69,9 +69,11 @@ typedef struct {
     const double *measured; /* n samples (needed by kt_fit, unused by kt_simulate) */
     double weight;          /* residuals are weight * (simulated - measured); 0 means 1 */
     /* periodic steady state: the record is whole periods of this many samples (0 = not periodic).
-     * The first period's input is repeated from the initial state until the output of one period
-     * differs from the previous one by less than periodic_tol * (largest |output| of the period)
-     * (0 = 1e-7), at most periodic_max_periods periods (0 = 400); then the record is simulated. */
+     * The first period's input is repeated from the initial state until the states at the end of a
+     * period equal those at its start (remaining transient extrapolated from the last two periods),
+     * or the output of one period equals the previous one's, to periodic_tol (0 = 1e-7) relative,
+     * at most periodic_max_periods periods (0 = 400). That period is the record's first; the record
+     * continues from there (simulate.cpp says exactly how). */
     int periodic_samples;
     double periodic_tol;
     int periodic_max_periods;
@@ -90,6 +92,13 @@ KT_API const char *kt_last_error(void);
 #define KT_SCALE_AUTO 0   /* log if the bounds (or the start) keep one sign, else linear */
 #define KT_SCALE_LOG 1    /* theta = log|p| (the bounds must not contain 0) */
 #define KT_SCALE_LINEAR 2 /* theta = p / |start| (or / 1 if start is 0) */
+
+/* Progress of a fit: called on the caller's thread after every Levenberg-Marquardt iteration of
+ * start `start` (0 = the given start), horizon stage `stage` (0-based, of n_stages), with the cost
+ * 0.5 sum r^2 and the simulations so far. Return 0 to go on, nonzero to stop (kt_fit then returns
+ * -1 with kt_last_error() "kt_fit: stopped by the progress callback"). */
+typedef int (*kt_progress_fn)(void *ctx, int start, int stage, int n_stages, int iteration, double cost,
+                              long evaluations);
 
 typedef struct {
     int max_iterations;      /* LM iterations per start (default 100) */
@@ -119,6 +128,8 @@ typedef struct {
                                 ended (keeps the cost of an oscillation unimodal in its frequency;
                                 default 1 = whole records only) */
     int verbose;             /* 1: progress lines on stderr */
+    kt_progress_fn progress; /* called after every LM iteration (NULL = none); nonzero stops the fit */
+    void *progress_ctx;
 } kt_fit_options;
 
 KT_API void kt_fit_default_options(kt_fit_options *o);

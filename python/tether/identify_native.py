@@ -22,7 +22,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["Experiment", "FitResult", "experiment_from_trace", "library", "parameter_names", "parameter_start", "simulate", "fit",
+__all__ = ["Experiment", "FitResult", "PROGRESS", "experiment_from_trace", "library", "parameter_names", "parameter_start", "simulate", "fit",
            "spline_derivatives", "INPUT_NONE", "INPUT_FORCE", "INPUT_LOAD"]
 
 INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
@@ -50,7 +50,12 @@ class _Options(C.Structure):
         ("start_spread", C.c_double), ("seed", C.c_uint), ("n_threads", C.c_int), ("rtol", C.c_double),
         ("singular_rel_tol", C.c_double), ("max_rel_std", C.c_double), ("stat_tol", C.c_double),
         ("output_stride", C.c_int), ("horizon_stages", C.c_int), ("verbose", C.c_int),
+        ("progress", C.c_void_p), ("progress_ctx", C.c_void_p),
     ]
+
+
+#: int progress(ctx, start, stage, n_stages, iteration, cost, evaluations); nonzero stops the fit
+PROGRESS = C.CFUNCTYPE(C.c_int, C.c_void_p, C.c_int, C.c_int, C.c_int, C.c_int, C.c_double, C.c_long)
 
 
 class _Result(C.Structure):
@@ -286,8 +291,12 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
 
     options: any field of kt_fit_options (max_iterations, ftol, xtol, gtol, fd_step,
     central_differences, n_starts, start_spread, seed, n_threads, rtol, singular_rel_tol,
-    max_rel_std, stat_tol, output_stride, horizon_stages, verbose)."""
+    max_rel_std, stat_tol, output_stride, horizon_stages, verbose, and
+    ``progress``: a callable f(start, stage, n_stages, iteration, cost, evaluations) called after
+    every LM iteration; a true return value stops the fit (RuntimeError), an exception it raises
+    stops the fit and is raised again here."""
     lib = library()
+    progress = options.pop("progress", None)
     keep: list = []
     arr = (_Experiment * len(experiments))()
     for i, e in enumerate(experiments):
@@ -306,6 +315,17 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
         if key not in dict(_Options._fields_):
             raise TypeError(f"fit: unknown option '{key}'")
         setattr(o, key, v)
+    raised: list = []
+    if progress is not None:
+        def _progress(_ctx, start, stage, n_stages, iteration, cost, evaluations):
+            try:
+                return 1 if progress(start, stage, n_stages, iteration, cost, evaluations) else 0
+            except BaseException as exc:  # noqa: BLE001 - re-raised after kt_fit returns
+                raised.append(exc)
+                return 1
+        callback = PROGRESS(_progress)
+        keep.append(callback)
+        o.progress = C.cast(callback, C.c_void_p)
     vals, se, cl, ch, sv = (np.zeros(k) for _ in range(5))
     cov, cor, vec = (np.zeros((k, k)) for _ in range(3))
     dfl = np.zeros(k, dtype=np.int32)
@@ -318,8 +338,10 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
     r.cost_history, r.cost_history_capacity = _dbl(hist), len(hist)
     rc = lib.kt_fit(arr, len(experiments), k, _names(names), _dbl(lo), _dbl(hi), _dbl(st), sc.ctypes.data_as(_IP),
                     C.byref(o), C.byref(r))
+    if raised:
+        raise raised[0]
     if rc < 0:
-        raise RuntimeError("kt_fit: " + lib.kt_last_error().decode())
+        raise RuntimeError("kt_fit: " + lib.kt_last_error().decode().removeprefix("kt_fit: "))
     return FitResult(
         names=names, values=vals, std_error=se, ci_low=cl, ci_high=ch, covariance=cov, correlation=cor,
         singular_values=sv, singular_vectors=vec, direction_flags=dfl.astype(bool),
