@@ -1,0 +1,957 @@
+"""Fit model parameters to measured traces: data-based starts, staged Levenberg-Marquardt through
+the identification engine (the FMU's own physics), intervals and an identifiability report.
+
+    from tether.fit import fit_traces, write_fit_params
+    r = fit_traces([read_trace("train_multisine")], "linear+boucwen", progress=print)
+    write_fit_params("P.json", r)          # tether simulate/validate --params P.json read it
+
+How a fit runs
+==============
+1. **Experiments.** Each trace becomes one engine experiment exactly as :func:`tether.run.simulate`
+   drives the FMU: the rig of its experiment, ``L0``, ``m``, ``g``, ``x0``, ``v0`` from its metadata
+   (fixed, never fitted; a periodic record starts from rest), its input reconstructed by run.py's
+   own helpers (``force`` a cubic spline, periodic for a periodic record; ``load`` PCHIP; the trace's
+   ``input_interpolation`` key wins), one solver step sequence per sample like the FMU's.
+   A periodic record of K periods is fitted as the mean of its periods with weight sqrt(K): the
+   model's output repeats every period, so sum_k |y - m_k|^2 = K |y - mean(m)|^2 + const and the
+   optimum, the covariance and the intervals are those of the whole record, at 1/K of the cost.
+   Several traces share one parameter set; each trace's residuals are weighted by the inverse of
+   its noise level estimated from the data (equal noise: weight 1).
+2. **Starts from the data** (:func:`initial_estimate`, no hand-picked values):
+   payload traces: equation error ``m x'' + c(x) x' + R(x) + z = f`` with derivatives from a
+   Savitzky-Golay filter (periodic records: exact spectral derivatives below the highest excited
+   frequency), linear in the stiffness and damping coefficients; with Bouc-Wen, ``z`` is integrated
+   along the measured path for (A, beta, gamma) found by a small nonlinear least-squares (several
+   data-scaled starts: A a fraction of the stiffness, beta and gamma from the amplitude). The
+   cubic's a1, a2, a3 follow from the Taylor coefficients about the balance. Load tests: the static
+   law inverted (linear or cubic fit of load against strain); Kawabata's LT, RT and residual strain
+   from the cycle's energies; creep compliances by linear least squares on the Kelvin responses.
+3. **Stages**: the elastic law and viscous damping first (other effects held at their starts),
+   then every free parameter. Free-vibration records use the engine's horizon stages (first part
+   of the record, then all of it) against the multimodality of an oscillation in its frequency.
+4. **Statistics** at the optimum: standard errors, 95 % intervals (linearized, Student t),
+   correlations, and the directions the data do not determine (SVD of the Jacobian), named.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from . import identify_native as idn
+from .models import ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model, write_params
+from .run import _input_pieces, input_interpolation
+from .traces import Trace, read_trace
+
+__all__ = ["FitResult", "FitProgress", "FitError", "default_free_parameters", "initial_estimate", "fit_traces",
+           "write_fit_params", "noise_level"]
+
+
+class FitError(ValueError):
+    """A fit that cannot be set up (bad free names, no traces, ...); ``str(e)`` is one line."""
+
+
+# ---------------------------------------------------------------------------------------------
+# results
+@dataclass
+class FitResult:
+    model: str                      # canonical model string
+    parameters: dict                # every parameter that defines the fitted model (fixed + fitted), --params form
+    free: list                      # names fitted
+    values: dict                    # name -> fitted value
+    std_error: dict                 # name -> standard error
+    ci95: dict                      # name -> (low, high)
+    correlation: np.ndarray         # k x k, order of `free`
+    unidentifiable: list
+    identifiability_report: str
+    rms: float                      # overall RMS of (simulated - measured) over all traces
+    rms_per_trace: list
+    predictions: list               # simulated measured column on each trace's own time grid
+    evaluations: int
+    seconds: float
+    status: int
+    message: str
+    # extras
+    traces: list = field(default_factory=list)          # trace names
+    noise: list = field(default_factory=list)           # noise level estimated per trace (measured unit)
+    start: dict = field(default_factory=dict)           # the start values of the free parameters
+    stages: list = field(default_factory=list)          # per stage: name, free, rms, evaluations, seconds
+    condition: float = float("nan")
+    singular_values: list = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary (what ``tether fit --report`` writes to fit.json)."""
+        return {
+            "format": "tether-fit/1",
+            "model": self.model,
+            "traces": list(self.traces),
+            "free": list(self.free),
+            "parameters": dict(self.parameters),
+            "values": dict(self.values),
+            "start": dict(self.start),
+            "std_error": dict(self.std_error),
+            "ci95": {k: [float(a), float(b)] for k, (a, b) in self.ci95.items()},
+            "correlation": np.asarray(self.correlation).tolist(),
+            "unidentifiable": list(self.unidentifiable),
+            "identifiability_report": self.identifiability_report,
+            "rms": self.rms,
+            "rms_per_trace": list(self.rms_per_trace),
+            "noise_estimate": list(self.noise),
+            "condition": self.condition,
+            "singular_values": list(self.singular_values),
+            "stages": list(self.stages),
+            "evaluations": self.evaluations,
+            "seconds": self.seconds,
+            "status": self.status,
+            "message": self.message,
+        }
+
+
+@dataclass
+class FitProgress:
+    """One progress report: an LM iteration (iteration >= 0) or a stage starting (iteration -1)."""
+
+    stage: str
+    stage_index: int                # 0-based
+    n_stages: int
+    iteration: int
+    rms: float                      # weighted RMS residual so far (measured unit)
+    evaluations: int                # simulations of the data set in this stage
+    seconds: float                  # since the fit began
+    free: list = field(default_factory=list)
+    start: int = 0                  # engine start (multistart)
+    horizon: str = ""               # engine horizon stage, e.g. "1/3"
+
+    def __str__(self) -> str:
+        head = f"stage {self.stage_index + 1}/{self.n_stages} ({self.stage})"
+        if self.iteration < 0:
+            return f"{head}: fitting {', '.join(self.free)}"
+        hz = f" horizon {self.horizon}" if self.horizon else ""
+        st = f" start {self.start + 1}" if self.start else ""
+        return (f"{head}{st}{hz} iteration {self.iteration + 1}: RMS {self.rms:.4g}, "
+                f"{self.evaluations} simulations, {self.seconds:.1f} s")
+
+
+# ---------------------------------------------------------------------------------------------
+# parameters
+#: fitted on a log scale (one sign; the engine's steps are relative)
+_LOG = {"EA", "a1", "c0", "bw_A", "kaw_F_ref", "kaw_eps_ref", "creep_J1", "creep_J2", "creep_J3", "creep_tau1",
+        "creep_tau2", "creep_tau3", "slip_capacity0", "slip_rate", "slip_knee", "slip_load_half",
+        "slip_load_exponent", "slip_regen_tau", "slip_limit"}
+#: the elastic law and viscous damping: the first stage
+_BASE = {"EA", "a1", "a2", "a3", "c0", "kaw_LT", "kaw_RT", "kaw_F_ref", "kaw_residual", "kaw_eps_ref"}
+_CREEP_FREE = ["creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate"]
+
+
+def _spec(model) -> ModelSpec:
+    return parse_model(model) if isinstance(model, str) else model
+
+
+def default_free_parameters(spec, experiment: str) -> list[str]:
+    """The parameters the data of ``experiment`` can determine for ``spec``.
+
+    Elastic law: ``EA``; cubic ``a1 a2 a3``; Kawabata ``kaw_LT kaw_RT kaw_F_ref`` plus the residual
+    strain ``kaw_residual`` where the load returns to zero (load tests; ``kaw_eps_ref`` stays fixed:
+    the virgin curve through (eps_ref, F_ref) is one curve, a point on it is one number).
+    Damping (payload rig only; quasi-static load tests do not see it): ``c0``, plus ``c1 c2`` for
+    displacement-dependent damping. Bouc-Wen: ``bw_A bw_beta bw_gamma`` (the force scale is fixed by
+    the law; ``bw_n`` stays at its value and the shape terms ``bw_b2..b6`` at 0). Creep (creep tests
+    only; seconds of vibration do not see it): the Kelvin compliances ``creep_J1..3`` (time
+    constants fixed at their values, spanning minutes to days) and the slip ``slip_capacity0``,
+    ``slip_rate``; a creep test holds two load levels, which determine ``EA`` but not a cubic or
+    Kawabata law (held at its values: fit it on a load test and pass it with ``fixed``).
+    """
+    spec = _spec(spec).for_experiment(experiment)
+    payload = spec.rig == "payload"
+    names: list[str] = []
+    if experiment == "creep" and (spec.stiffness == "cubic" or spec.hysteresis == "kawabata"):
+        pass      # two load levels cannot determine a three-coefficient law: fit it on a load test
+    elif spec.hysteresis == "kawabata":
+        names += ["kaw_LT", "kaw_RT", "kaw_F_ref"] + ([] if payload else ["kaw_residual"])
+    elif spec.stiffness == "cubic":
+        names += ["a1", "a2", "a3"]
+    else:
+        names += ["EA"]
+    if payload:
+        names += ["c0"] + (["c1", "c2"] if spec.damping == "displacement" else [])
+    if spec.hysteresis == "boucwen":
+        names += ["bw_A", "bw_beta", "bw_gamma"]
+    if spec.creep and experiment == "creep":
+        names += _CREEP_FREE
+    return names
+
+
+def _fmu_defaults() -> dict:
+    return {n: idn.parameter_start(n) for n in idn.parameter_names(kind=0)}
+
+
+def _fmu_bounds() -> dict:
+    """name -> (min, max) of the FMU's parameters (None where unbounded)."""
+    try:
+        from .fmu import model_description
+        d = model_description()
+        return {n: (v.min, v.max) for n, v in d.parameters.items()}
+    except Exception:  # noqa: BLE001 - without the FMU: no bounds beyond the engine's
+        return {}
+
+
+# ---------------------------------------------------------------------------------------------
+# noise and derivatives from the data
+def _robust_std(d: np.ndarray) -> float:
+    d = np.asarray(d, float)
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d - np.median(d))))
+
+
+def noise_level(trace: Trace) -> float:
+    """The measurement noise (standard deviation, measured unit) estimated from the data alone:
+    from the differences between periods of a periodic record, else from the 4th differences of
+    the measured column (robust scale; white noise gives 70 sigma^2)."""
+    y = np.asarray(trace.measured, float)
+    P = int(trace.periodic_samples or 0)
+    if P and len(y) >= 2 * P:
+        per = y.reshape(-1, P)
+        dev = per - per.mean(axis=0)
+        K = per.shape[0]
+        return float(np.sqrt(np.sum(dev ** 2) / (P * (K - 1))))
+    if len(y) < 8:
+        return float(np.std(y)) or 1.0
+    d4 = y[4:] - 4 * y[3:-1] + 6 * y[2:-2] - 4 * y[1:-3] + y[:-4]
+    s = _robust_std(d4) / math.sqrt(70.0)
+    if not s > 0:
+        s = float(np.std(np.diff(y))) / math.sqrt(2.0)
+    return s if s > 0 else max(1e-12, 1e-9 * float(np.max(np.abs(y))))
+
+
+def _dominant_frequency(t: np.ndarray, y: np.ndarray) -> float:
+    dt = float(np.median(np.diff(t)))
+    yy = (y - np.mean(y)) * np.hanning(len(y))
+    spec = np.abs(np.fft.rfft(yy))
+    f = np.fft.rfftfreq(len(y), dt)
+    spec[0] = 0.0
+    return float(f[int(np.argmax(spec))]) or 1.0 / (t[-1] - t[0])
+
+
+@dataclass
+class _Kinematics:
+    x: np.ndarray      # smoothed displacement
+    v: np.ndarray
+    a: np.ndarray
+    f: np.ndarray      # force on the payload (0 for free vibration)
+    use: np.ndarray    # samples the equation error may use (edges of a filter window dropped)
+    periodic: bool
+
+
+def _kinematics(trace: Trace, f_dom: float) -> _Kinematics:
+    """Displacement, velocity and acceleration of a payload trace (one period for periodic records)."""
+    t = np.asarray(trace.time, float)
+    y = np.asarray(trace.measured, float)
+    f = np.zeros_like(y) if trace.input is None else np.asarray(trace.input, float)
+    P = int(trace.periodic_samples or 0)
+    if P:
+        # exact derivatives of the mean period's Fourier series, below the highest excited frequency
+        x = y.reshape(-1, P).mean(axis=0)
+        fp = f[:P]
+        Tp = float(t[P] - t[0]) if len(t) > P else float(t[P - 1] - t[0]) * P / (P - 1)
+        X = np.fft.rfft(x)
+        w = 2 * np.pi * np.fft.rfftfreq(P, Tp / P)
+        F = np.abs(np.fft.rfft(fp))
+        if F.max() > 0:
+            excited = F > 1e-3 * F.max()
+            cut = 1.2 * w[excited].max() if excited.any() else w[-1]
+            X[w > cut] = 0.0
+        xs = np.fft.irfft(X, P)
+        v = np.fft.irfft(1j * w * X, P)
+        a = np.fft.irfft(-(w ** 2) * X, P)
+        return _Kinematics(xs, v, a, fp.copy(), np.ones(P, bool), True)
+    from scipy.signal import savgol_filter
+
+    dt = float(np.median(np.diff(t)))
+    win = int(round(1.0 / (f_dom * dt) / 6.0)) | 1           # about a sixth of the dominant period
+    win = max(7, min(win, 101, (len(y) // 4) | 1 if len(y) >= 28 else 7))
+    if len(y) <= win:
+        win = max(5, (len(y) - 1) | 1 if (len(y) - 1) % 2 else len(y) - 2)
+    order = 4 if win >= 9 else 3
+    xs = savgol_filter(y, win, order, deriv=0)
+    v = savgol_filter(y, win, order, deriv=1, delta=dt)
+    a = savgol_filter(y, win, order, deriv=2, delta=dt)
+    use = np.zeros(len(y), bool)
+    use[win:len(y) - win] = True
+    if use.sum() < 10:
+        use[:] = True
+    return _Kinematics(xs, v, a, f, use, False)
+
+
+# ---------------------------------------------------------------------------------------------
+# Bouc-Wen force along a measured path
+def _bw_path(x: Sequence[float], A: float, beta: float, gamma: float, periodic: bool) -> np.ndarray:
+    """z along the path x (n = 1): dz/dx = A - |z| (gamma + beta sgn(dx z)), integrated exactly
+    sample to sample for a fixed sign of z (a linear ODE in x). Periodic: two passes, the second kept."""
+    xs = [float(v) for v in x]
+    n = len(xs)
+    dx = [xs[i + 1] - xs[i] for i in range(n - 1)] + [(xs[0] - xs[-1]) if periodic else 0.0]
+    out = [0.0] * n
+    z = 0.0
+    exp = math.exp
+    for _ in range(2 if periodic else 1):
+        for i in range(n):
+            out[i] = z
+            d = dx[i]
+            if d == 0.0:
+                continue
+            psi = gamma + beta if d * z > 0 else gamma - beta
+            lam = psi if z >= 0 else -psi          # dz/dx = A - lam z
+            e = lam * d
+            if abs(e) < 1e-8:
+                z = z + (A - lam * z) * d
+            elif e > -50.0:
+                zs = A / lam
+                z = zs + (z - zs) * exp(-e)
+            else:                                   # runaway (hardening without bound): stop growing
+                z = z + (A - lam * z) * d
+            if not math.isfinite(z) or abs(z) > 1e12:
+                z = math.copysign(1e12, z if math.isfinite(z) else 1.0)
+    return np.asarray(out)
+
+
+# ---------------------------------------------------------------------------------------------
+# initial estimates
+def _restoring_columns(x: np.ndarray, cubic: bool) -> list[np.ndarray]:
+    return [x, x ** 2, x ** 3] if cubic else [x]
+
+
+def _damping_columns(x: np.ndarray, v: np.ndarray, displacement: bool) -> list[np.ndarray]:
+    return [v, np.abs(x) * v, x ** 2 * v] if displacement else [v]
+
+
+def _cubic_from_taylor(k1: float, k2: float, k3: float, L0: float, weight: float) -> dict | None:
+    """a1, a2, a3 from the Taylor coefficients about the balance: F(eps_b + x/L0) - F(eps_b) =
+    k1 x + k2 x^2 + k3 x^3 and F(eps_b) = weight: eps_b solves K1 e - K2 e^2 + a3 e^3 = weight
+    (K1 = k1 L0, K2 = k2 L0^2, a3 = k3 L0^3)."""
+    K1, K2, a3 = k1 * L0, k2 * L0 ** 2, k3 * L0 ** 3
+    if weight > 0:
+        roots = np.roots([a3, -K2, K1, -weight])
+        real = sorted(float(r.real) for r in roots if abs(r.imag) <= 1e-9 * max(1.0, abs(r)) and r.real > 0)
+        if not real:
+            return None
+        eb = real[0]
+    else:
+        eb = 0.0
+    a2 = K2 - 3 * a3 * eb
+    a1 = K1 - 2 * K2 * eb + 3 * a3 * eb ** 2
+    return {"a1": a1, "a2": a2, "a3": a3}
+
+
+def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
+    """Equation-error estimates for one payload trace."""
+    t = np.asarray(trace.time, float)
+    m = float(trace.payload_mass_kg)
+    g = float(trace.gravity_m_s2)
+    L0 = float(trace.length_m)
+    f_dom = _dominant_frequency(t, np.asarray(trace.measured, float))
+    K = _kinematics(trace, f_dom)
+    cubic = spec.stiffness == "cubic" or spec.hysteresis == "kawabata"
+    disp = spec.damping == "displacement"
+    bw = spec.hysteresis == "boucwen"
+    rhs_all = K.f - m * K.a
+    keep = K.use.copy()
+    amp = float(np.max(np.abs(K.x[keep]))) or 1e-9
+
+    def solve(z, sel, cub=cubic, dsp=disp):
+        cols = _damping_columns(K.x[sel], K.v[sel], dsp) + _restoring_columns(K.x[sel], cub)
+        A = np.column_stack(cols)
+        b = rhs_all[sel] - (0.0 if z is None else z[sel])
+        scale = np.linalg.norm(A, axis=0)
+        scale[scale == 0] = 1.0
+        coef, *_ = np.linalg.lstsq(A / scale, b, rcond=None)
+        coef = coef / scale
+        res = b - A @ coef
+        return coef, res
+
+    # linear first: the stiffness scale; drop samples that may be slack (below the balance stretch)
+    coef, _ = solve(None, keep, cub=False, dsp=False)
+    k_lin = float(coef[1]) if coef[1] > 0 else m * (2 * math.pi * f_dom) ** 2
+    c_lin = float(coef[0])
+    if spec.slack and g > 0:
+        slack_free = K.x > -0.9 * m * g / k_lin
+        if slack_free[keep].sum() > 20:
+            keep &= slack_free
+    est: dict = {"_k_lin": k_lin, "_c_lin": c_lin, "_amp": amp, "_omega": math.sqrt(max(k_lin, 1e-300) / m)}
+
+    z = None
+    if bw:
+        # (A, beta, gamma) by nonlinear least squares; the rest is linear (variable projection)
+        from scipy.optimize import least_squares
+
+        xs = K.x
+        sA, sb = k_lin, 1.0 / amp
+
+        def residual(p):
+            zz = _bw_path(xs, p[0] * sA, p[1] * sb, p[2] * sb, K.periodic)
+            _, r = solve(zz, keep)
+            return r
+
+        best = None
+        for p0 in ([0.3, 1.5, 0.5], [0.5, 1.0, -0.5], [0.15, 3.0, 1.0], [0.6, 0.5, -1.0]):
+            try:
+                sol = least_squares(residual, p0, bounds=([1e-6, -1e3, -1e3], [10.0, 1e3, 1e3]), x_scale=1.0,
+                                    diff_step=1e-4, max_nfev=60)
+            except (ValueError, FloatingPointError):
+                continue
+            if best is None or sol.cost < best.cost:
+                best = sol
+        if best is not None:
+            pA, pb, pg = best.x
+            est.update(bw_A=float(pA * sA), bw_beta=float(pb * sb), bw_gamma=float(pg * sb))
+            z = _bw_path(xs, est["bw_A"], est["bw_beta"], est["bw_gamma"], K.periodic)
+    coef, res = solve(z, keep)
+    nd = 3 if disp else 1
+    c = [float(v) for v in coef[:nd]]
+    k = [float(v) for v in coef[nd:]]
+    est["c0"] = c[0]
+    if disp:
+        # c(x) = c0 + c1 |x| + c2 x^2 >= 0: a term the equation error puts below zero starts small
+        # (5 % of the record's linear damping at its amplitude), not at 0, where it has no scale
+        c_ref = abs(c_lin) or 2 * 0.01 * math.sqrt(k_lin * m)
+        est["c1"] = c[1] if c[1] > 0 else 0.05 * c_ref / amp
+        est["c2"] = c[2] if c[2] > 0 else 0.05 * c_ref / amp ** 2
+    weight = m * g
+    if spec.hysteresis == "kawabata":
+        est["_k_taylor"] = k
+    elif cubic:
+        a = _cubic_from_taylor(k[0], k[1], k[2], L0, weight)
+        if a is None or not a["a1"] > 0:
+            a = {"a1": k_lin * L0}            # no consistent balance: the linear part only
+        est.update(a)
+    else:
+        est["EA"] = k[0] * L0
+    est["_ee_rms"] = float(np.sqrt(np.mean(res ** 2)))
+    return est
+
+
+def _trapezoid(y: np.ndarray, x: np.ndarray) -> float:
+    y = np.asarray(y, float)
+    x = np.asarray(x, float)
+    return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(x)))
+
+
+def _kawabata_cycle(trace: Trace) -> dict | None:
+    """Kawabata's LT, RT and residual strain from one loading-unloading cycle of a load test."""
+    T = np.asarray(trace.input, float)
+    u = np.asarray(trace.measured, float)
+    L0 = float(trace.length_m)
+    Fm = float(T.max())
+    if not Fm > 0:
+        return None
+    im = int(np.argmax(T))
+    top = T >= Fm * (1 - 1e-9)
+    last_top = int(np.flatnonzero(top)[-1])
+    eps_m = float(np.mean(u[top])) / L0
+    load = slice(0, im + 1)
+    unload = slice(last_top, len(T))
+    Tl, ul = T[load], u[load] / L0
+    Tu, uu = T[unload], u[unload] / L0
+    if len(Tl) < 3 or len(Tu) < 3 or not eps_m > 0:
+        return None
+    # energies by parts: int F d(eps) = F_m eps_m - int eps dF (the noisy strain is integrated over the load)
+    WT = Fm * eps_m - float(_trapezoid(ul, Tl))
+    zero = Tu <= 1e-9 * Fm
+    eps_1 = max(0.0, float(np.mean(uu[zero]))) if zero.any() else 0.0
+    # unloading from (eps_m, F_m) to (eps_1, 0): int F d(eps) = F_m eps_m - int eps dF (dF < 0 here)
+    WTp = Fm * eps_m + float(_trapezoid(uu, Tu))
+    if not (WT > 0 and WTp > 0):
+        return None
+    LT = WT / (Fm * eps_m / 2.0)
+    RT = WTp / WT
+    return {"LT": LT, "RT": RT, "residual": eps_1 / eps_m, "eps_m": eps_m, "F_m": Fm}
+
+
+def _creep_compliances(traces: Sequence[Trace], elastic: Callable[[np.ndarray], np.ndarray], taus: Sequence[float],
+                       slip_tau: float):
+    """Kelvin compliances J_k and the slip per loading by non-negative least squares:
+    eps - eps_elastic(T) = sum_k J_k (T through 1/(1 + tau_k s)) + S (slip: for every loading, a
+    saturating 1 - exp(-t_loaded / slip_tau) that stays after unloading)."""
+    from scipy.optimize import nnls
+
+    rows, rhs = [], []
+    for tr in traces:
+        t = np.asarray(tr.time, float)
+        T = np.asarray(tr.input, float)
+        eps = np.asarray(tr.measured, float) / float(tr.length_m)
+        cols = []
+        for tau in taus:
+            w = np.zeros_like(T)
+            for i in range(1, len(t)):
+                h = t[i] - t[i - 1]
+                e = math.exp(-h / tau)
+                w[i] = w[i - 1] * e + (1 - e) * 0.5 * (T[i] + T[i - 1])
+            cols.append(w)
+        loaded = T > 0.5 * T.max()
+        slip = np.zeros_like(T)
+        done, since = 0.0, None
+        for i in range(len(t)):
+            if loaded[i]:
+                since = t[i] if since is None else since
+                slip[i] = done + 1.0 - math.exp(-(t[i] - since) / slip_tau)
+            else:
+                if since is not None:
+                    done += 1.0 - math.exp(-(t[i] - since) / slip_tau)
+                    since = None
+                slip[i] = done
+        cols.append(slip)
+        rows.append(np.column_stack(cols))
+        rhs.append(eps - elastic(T))
+    A = np.vstack(rows)
+    b = np.concatenate(rhs)
+    # the slip per loading: what stays at the end of the first unloaded hold (the Kelvin cells of
+    # minutes to hours have recovered by then); the long Kelvin cell would otherwise take it all
+    persistent = []
+    for tr, r in zip(traces, rhs):
+        T = np.asarray(tr.input, float)
+        loaded = T > 0.5 * T.max()
+        off = np.flatnonzero(~loaded & (np.cumsum(loaded) > 0))
+        if off.size:
+            ends = off[np.r_[np.diff(off) > 1, True]]
+            persistent.append(float(r[ends[0]]))
+    slip = max(float(np.mean(persistent)), 0.0) if persistent else 0.0
+    b = b - slip * A[:, -1]
+    A = A[:, :-1]
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    coef, _ = nnls(A / scale, b)
+    coef = coef / scale
+    return [max(float(c), 1e-12) for c in coef], max(slip, 1e-12)
+
+
+def _load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> dict:
+    est: dict = {}
+    eps_all, T_all = [], []
+    # the static law from load-unload tests; a creep test alone informs only EA (two load levels)
+    static = [tr for tr in traces if tr.experiment == "load_unload"]
+    if not static and spec.stiffness == "linear" and spec.hysteresis != "kawabata":
+        static = list(traces)
+    for tr in static:
+        T = np.asarray(tr.input, float)
+        eps = np.asarray(tr.measured, float) / float(tr.length_m)
+        if tr.experiment == "creep":
+            # the instantaneous (elastic) response: the first sample after each load change
+            jump = np.r_[False, np.abs(np.diff(T)) > 0.05 * max(T.max(), 1e-300)]
+            sel = np.r_[False, jump[:-1]] & ~jump
+            sel |= np.r_[True, np.zeros(len(T) - 1, bool)]
+        else:
+            sel = T > 0.02 * max(T.max(), 1e-300)
+        eps_all.append(eps[sel])
+        T_all.append(T[sel])
+    eps = np.concatenate(eps_all) if eps_all else np.zeros(0)
+    T = np.concatenate(T_all) if T_all else np.zeros(0)
+    ok = np.isfinite(eps) & np.isfinite(T)
+    eps, T = eps[ok], T[ok]
+    if eps.size >= 2 and np.ptp(eps) > 0:
+        EA = float(np.sum(T * eps) / max(np.sum(eps ** 2), 1e-300))
+        if EA > 0:
+            est["EA"] = EA
+        if spec.stiffness == "cubic" and eps.size >= 4:
+            A = np.column_stack([eps, eps ** 2, eps ** 3])
+            s = np.linalg.norm(A, axis=0)
+            s[s == 0] = 1.0
+            coef, *_ = np.linalg.lstsq(A / s, T, rcond=None)
+            coef /= s
+            if coef[0] > 0:
+                est.update(a1=float(coef[0]), a2=float(coef[1]), a3=float(coef[2]))
+    if spec.hysteresis == "kawabata":
+        cycles = [c for c in (_kawabata_cycle(tr) for tr in traces if tr.experiment == "load_unload") if c]
+        if cycles:
+            LT = float(np.clip(np.mean([c["LT"] for c in cycles]), 0.06, 1.9))
+            RT = float(np.clip(np.mean([c["RT"] for c in cycles]), 0.02, 0.99))
+            res = float(np.clip(np.mean([c["residual"] for c in cycles]), 0.0, 0.9))
+            p = 2.0 / LT - 1.0
+            eps_ref = defaults.get("kaw_eps_ref", 0.02)
+            F_ref = float(np.exp(np.mean([math.log(c["F_m"] * (eps_ref / c["eps_m"]) ** p) for c in cycles])))
+            est.update(kaw_LT=LT, kaw_RT=RT, kaw_residual=res, kaw_F_ref=F_ref)
+    if spec.creep:
+        creep_traces = [tr for tr in traces if tr.experiment == "creep"]
+        if creep_traces:
+            if spec.stiffness == "cubic":
+                inv = _cubic_inverse(*(est.get(n, defaults[n]) for n in ("a1", "a2", "a3")))
+            else:
+                EA = est.get("EA", defaults.get("EA", 3500.0))
+                inv = lambda T: np.asarray(T) / EA  # noqa: E731
+            taus = [defaults.get(f"creep_tau{k}", v) for k, v in ((1, 1800.0), (2, 5400.0), (3, 172800.0))]
+            slip_tau = defaults.get("slip_regen_tau", 3600.0)
+            J, slip = _creep_compliances(creep_traces, inv, taus, slip_tau)
+            floor = 1e-3 * max(J)
+            est.update(creep_J1=max(J[0], floor), creep_J2=max(J[1], floor), creep_J3=max(J[2], floor))
+            # slip: what one loading uses up, at the rate that uses it within slip_tau
+            est["slip_capacity0"] = max(slip, 1e-9)
+            est["slip_rate"] = max(slip, 1e-9) / slip_tau
+    return est
+
+
+def _cubic_inverse(a1, a2, a3):
+    """Strain of the cubic law at tension T, on its rising branch (bisection on [0, eps_rise])."""
+    roots = np.roots([3 * a3, 2 * a2, a1]) if a3 != 0 else np.array([-a1 / (2 * a2)] if a2 else [])
+    rising = [float(r.real) for r in np.atleast_1d(roots) if abs(r.imag) < 1e-12 and r.real > 0]
+    hi0 = min(rising) if rising else 1.0
+
+    def inv(T):
+        T = np.asarray(T, float)
+        lo = np.zeros_like(T)
+        hi = np.full_like(T, hi0)
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            below = a1 * mid + a2 * mid ** 2 + a3 * mid ** 3 < T
+            lo = np.where(below, mid, lo)
+            hi = np.where(below, hi, mid)
+        return 0.5 * (lo + hi)
+    return inv
+
+
+def initial_estimate(traces: Sequence[Trace], spec, fixed: Mapping[str, float] | None = None) -> dict:
+    """Start values for every parameter of ``spec`` from the data (see the module docstring);
+    parameters the data cannot inform keep the FMU's start values (or ``fixed``, values known
+    otherwise, e.g. the elastic law under a creep test). Keys starting with '_' are scales for the
+    fit (stiffness, amplitude, frequency), not parameters."""
+    spec = _spec(spec)
+    traces = [t if isinstance(t, Trace) else read_trace(t) for t in traces]
+    defaults = {**_fmu_defaults(), **{k: float(v) for k, v in (fixed or {}).items()}}
+    est = {n: defaults[n] for n in spec.parameters if n in defaults}
+    load = [t for t in traces if t.rig == "load"]
+    payload = [t for t in traces if t.rig == "payload"]
+    if load:
+        est.update(_load_estimate(load, spec, defaults))
+    if payload:
+        per = [_payload_estimate(t, spec) for t in payload]
+        keys = set().union(*per)
+        for k in keys:
+            vals = [p[k] for p in per if k in p and np.all(np.isfinite(p[k]))]
+            if not vals:
+                continue
+            if k.startswith("_k_taylor"):
+                continue
+            if load and k in ("EA", "a1", "a2", "a3"):
+                continue                      # the static law from the load tests wins
+            est[k] = float(np.mean(vals))
+        if spec.hysteresis == "kawabata" and not load:
+            # payload only: the virgin curve's tangent at the balance gives the scale of F_ref
+            k_lin = float(np.mean([p["_k_lin"] for p in per]))
+            tr = payload[0]
+            L0, w = float(tr.length_m), float(tr.payload_mass_kg) * float(tr.gravity_m_s2)
+            LT = est.get("kaw_LT", defaults["kaw_LT"])
+            pexp = 2.0 / LT - 1.0
+            if w > 0 and k_lin > 0:
+                eps_b = pexp * w / (k_lin * L0)           # F = C eps^p: dF/deps = p F / eps at the balance
+                est["kaw_F_ref"] = w * (defaults["kaw_eps_ref"] / eps_b) ** pexp
+    return {k: v for k, v in est.items() if k in spec.parameters or k.startswith("_")}
+
+
+# ---------------------------------------------------------------------------------------------
+# experiments
+@dataclass
+class _Exp:
+    trace: Trace
+    exp: idn.Experiment
+    periods: int          # K (periodic records are fitted as their mean period)
+    noise: float
+
+
+def _experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str, float]) -> _Exp:
+    sp = spec.for_experiment(trace.experiment)
+    settings = {k: float(v) for k, v in sp.switches.items()}
+    settings.update({k: float(v) for k, v in settings_extra.items()})
+    settings["L0"] = float(trace.length_m)
+    P = int(trace.periodic_samples or 0)
+    if sp.rig == "payload":
+        settings.update(m=float(trace.payload_mass_kg), g=float(trace.gravity_m_s2),
+                        x0=0.0 if P else float(trace.initial_displacement_m),
+                        v0=0.0 if P else float(trace.initial_velocity_m_s))
+    t = np.asarray(trace.time, float)
+    y = np.asarray(trace.measured, float)
+    kind = {None: idn.INPUT_NONE, "force": idn.INPUT_FORCE, "load": idn.INPUT_LOAD}[trace.input_column]
+    inp = der = None
+    if P:
+        K = len(t) // P
+        Tp = float(t[P] - t[0]) if len(t) > P else float(t[P - 1] - t[0]) * P / (P - 1)
+        tt = t[:P]
+        meas = y.reshape(K, P).mean(axis=0)
+        if kind != idn.INPUT_NONE:
+            inp, der = _input_pieces(tt, np.asarray(trace.input, float)[:P], Tp, input_interpolation(trace))
+        # the engine closes a period with (t[P-1] - t[0]) P / (P - 1): exact for uniform sampling
+        uniform = abs(float(t[P - 1] - t[0]) * P / (P - 1) - Tp) <= 1e-9 * Tp
+        if not uniform:
+            tt = np.concatenate([tt, tt + Tp])
+            meas = np.tile(meas, 2)
+            if inp is not None:
+                inp, der = np.tile(inp, 2), np.tile(der, (2, 1))
+            e = idn.Experiment(tt, settings=settings, input_kind=kind, input=inp, input_der=der,
+                               output=trace.measured_column, measured=meas, periodic_samples=P)
+            return _Exp(trace, e, K / 2.0, noise_level(trace))
+        e = idn.Experiment(tt, settings=settings, input_kind=kind, input=inp, input_der=der,
+                           output=trace.measured_column, measured=meas, periodic_samples=P)
+        return _Exp(trace, e, K, noise_level(trace))
+    if kind != idn.INPUT_NONE:
+        vals, ders = _input_pieces(t, np.asarray(trace.input, float), None, input_interpolation(trace))
+        inp = np.append(vals, float(trace.input[-1]))
+        der = np.vstack([ders, np.zeros((1, 3))])
+    e = idn.Experiment(t, settings=settings, input_kind=kind, input=inp, input_der=der,
+                       output=trace.measured_column, measured=y)
+    return _Exp(trace, e, 1, noise_level(trace))
+
+
+def _predict(x: _Exp, params: Mapping[str, float]) -> np.ndarray:
+    y = idn.simulate(x.exp, params)
+    P = int(x.trace.periodic_samples or 0)
+    if P:
+        return np.tile(y[:P], len(x.trace.time) // P)
+    return y
+
+
+# ---------------------------------------------------------------------------------------------
+def _check_names(names: Iterable[str], spec: ModelSpec, what: str) -> list[str]:
+    known = set(idn.parameter_names(kind=0))
+    out = []
+    for n in names:
+        if n in SWITCHES:
+            raise FitError(f"{what} '{n}': a structural switch, chosen by the model string, not a parameter")
+        if n in TRACE_PARAMETERS:
+            raise FitError(f"{what} '{n}': set by each trace's metadata (L0, m, g, x0, v0 are not fitted)")
+        if n not in known:
+            raise FitError(f"{what} '{n}': not a parameter of the FMU; the model '{spec.canonical}' has "
+                           f"{', '.join(spec.parameters)}")
+        if n not in spec.parameters:
+            raise FitError(f"{what} '{n}': not used by the model '{spec.canonical}'; its parameters are "
+                           f"{', '.join(spec.parameters)}")
+        if n in out:
+            raise FitError(f"{what} '{n}' given twice")
+        out.append(n)
+    return out
+
+
+def _bounds_and_start(name: str, start: float, fmu_bounds: dict, scales: dict) -> tuple[float, float, float, str]:
+    lo, hi = fmu_bounds.get(name, (None, None))
+    lo = -math.inf if lo is None else float(lo)
+    hi = math.inf if hi is None else float(hi)
+    if name in _LOG:
+        lo = max(lo, 0.0)
+        if not start > 0:
+            start = _positive_floor(name, scales)
+        return lo, hi, min(max(start, lo), hi), "log"
+    s = min(max(start, lo), hi)
+    return lo, hi, s, "linear"
+
+
+def _positive_floor(name: str, scales: dict) -> float:
+    """A small positive start for a log-scaled parameter the estimate put at or below zero."""
+    k = scales.get("_k_lin")
+    m = scales.get("_m")
+    if name == "c0" and k and m:
+        return 2 * 0.002 * math.sqrt(k * m)       # damping ratio 0.2 %
+    if name == "bw_A" and k:
+        return 0.05 * k
+    d = idn.parameter_start(name)
+    return d if d > 0 else 1e-6
+
+
+def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] | None = None,
+               start: Mapping[str, float] | None = None, fixed: Mapping[str, float] | None = None,
+               progress: Callable[[FitProgress], object] | None = None, n_starts: int = 1,
+               **engine_options) -> FitResult:
+    """Fit ``model`` to ``traces`` jointly (one shared parameter set).
+
+    free: names to fit (default: :func:`default_free_parameters` for each trace's experiment,
+    united). start: start values (default: :func:`initial_estimate`). fixed: values of parameters
+    that are not fitted (default: the FMU's start values). progress: called with a
+    :class:`FitProgress` at every stage and LM iteration. n_starts: starts of the last stage (the
+    estimate, then random ones around it). engine_options: kt_fit_options fields (max_iterations,
+    fd_step, stat_tol, ...). Raises FitError for bad names and RuntimeError if the engine fails.
+    """
+    t_begin = _time.perf_counter()
+    spec = _spec(model)
+    traces = [t if isinstance(t, Trace) else read_trace(t) for t in traces]
+    if not traces:
+        raise FitError("no traces to fit")
+    start = dict(start or {})
+    fixed = dict(fixed or {})
+    _check_names(fixed, spec, "fixed parameter")
+    _check_names(start, spec, "start value for")
+    if free is None:
+        free_names: list[str] = []
+        for tr in traces:
+            for n in default_free_parameters(spec, tr.experiment):
+                if n not in free_names and n not in fixed:
+                    free_names.append(n)
+    else:
+        free_names = _check_names(free, spec, "free parameter")
+        both = [n for n in free_names if n in fixed]
+        if both:
+            raise FitError(f"parameter '{both[0]}' is both free and fixed")
+    if not free_names:
+        raise FitError(f"nothing to fit: every parameter of '{spec.canonical}' is fixed")
+    for n, v in list(start.items()) + list(fixed.items()):
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(float(v)):
+            raise FitError(f"parameter '{n}': value {v!r} is not a finite number")
+
+    est = initial_estimate(traces, spec, fixed)
+    scales = {k: v for k, v in est.items() if k.startswith("_")}
+    if traces[0].payload_mass_kg:
+        scales["_m"] = float(traces[0].payload_mass_kg)
+    defaults = _fmu_defaults()
+    fmu_bounds = _fmu_bounds()
+    # every parameter of the model: fixed ones at `fixed` or the FMU's start value
+    model_values = {n: float(fixed.get(n, defaults[n])) for n in spec.parameters if n in defaults}
+    x0 = {}
+    box = {}
+    scaling = {}
+    for n in free_names:
+        s = float(start[n]) if n in start else float(est.get(n, defaults[n]))
+        lo, hi, s, sc = _bounds_and_start(n, s, fmu_bounds, scales)
+        if n in start and s != float(start[n]):
+            raise FitError(f"start value for '{n}': {start[n]!r} is outside the FMU's range [{lo:g}, {hi:g}]")
+        x0[n], box[n], scaling[n] = s, (lo, hi), sc
+    held = {n: v for n, v in model_values.items() if n not in free_names}
+
+    # experiments and weights (inverse noise, normalized; periodic means: sqrt(K))
+    exps = [_experiment(tr, spec, held) for tr in traces]
+    noises = np.array([max(x.noise, 1e-300) for x in exps])
+    ref = float(np.exp(np.mean(np.log(noises))))
+    for x, s in zip(exps, noises):
+        x.exp.weight = math.sqrt(x.periods) * (ref / s if len(exps) > 1 else 1.0)
+    n_eff = sum(len(x.exp.time) * x.exp.weight ** 2 for x in exps)
+
+    # engine options: free vibration uses horizon stages and a stride that keeps the Hermite
+    # interpolation between solver calls far below the noise (omega h <= 0.1)
+    opts = dict(engine_options)
+    free_vib = [x for x in exps if x.trace.experiment == "free_vibration"]
+    if free_vib and "horizon_stages" not in opts:
+        opts["horizon_stages"] = 3
+    if free_vib and "output_stride" not in opts:
+        omega = float(scales.get("_omega", 0.0)) or 0.0
+        dt = min(float(np.median(np.diff(x.trace.time))) for x in free_vib)
+        # the cubic stiffens: allow for twice the frequency at the balance
+        stride = int(0.1 / (2.0 * omega * dt)) if omega > 0 else 1
+        opts["output_stride"] = max(1, min(stride, 50))
+
+    # stages: the elastic law and viscous damping, then everything
+    base = [n for n in free_names if n in _BASE]
+    stages = []
+    if base and len(base) < len(free_names):
+        stages.append(("elastic law + viscous damping", base))
+    stages.append(("all free parameters", list(free_names)))
+
+    current = dict(x0)
+    evaluations = 0
+    stage_log = []
+    r = None
+    for si, (sname, names) in enumerate(stages):
+        if progress:
+            progress(FitProgress(sname, si, len(stages), -1, float("nan"), 0, _time.perf_counter() - t_begin,
+                                 free=list(names)))
+        hold = {n: current[n] for n in free_names if n not in names}
+        for x in exps:
+            x.exp.settings = {**x.exp.settings, **hold}
+        fr = {}
+        for n in names:
+            lo, hi = box[n]
+            fr[n] = (lo, hi, min(max(current[n], lo), hi))
+
+        def cb(st, hstage, n_h, it, cost, ev, _si=si, _sname=sname, _names=names):
+            if progress:
+                # a horizon stage fits the first 1/2^(n_h - 1 - hstage) of each non-periodic record
+                frac = 2.0 ** -(n_h - 1 - hstage)
+                n_h_eff = sum((len(x.exp.time) if x.exp.periodic_samples else
+                               max(min(len(x.exp.time), len(_names) + 2), math.ceil(len(x.exp.time) * frac)))
+                              * x.exp.weight ** 2 for x in exps)
+                progress(FitProgress(_sname, _si, len(stages), it, math.sqrt(2 * cost / n_h_eff), int(ev),
+                                     _time.perf_counter() - t_begin, free=list(_names), start=st,
+                                     horizon=f"{hstage + 1}/{n_h}" if n_h > 1 else ""))
+            return 0
+
+        o = dict(opts)
+        if si < len(stages) - 1:
+            # an intermediate stage only brings the start near the optimum: a looser stop
+            o.setdefault("max_iterations", 20)
+            o["ftol"] = max(float(o.get("ftol", 1e-10)), 1e-4)
+        if si == len(stages) - 1 and n_starts > 1:
+            o["n_starts"] = int(n_starts)
+            o.setdefault("start_spread", 0.3)
+        t_stage = _time.perf_counter()
+        r = idn.fit([x.exp for x in exps], fr, scaling={n: scaling[n] for n in names}, progress=cb, **o)
+        evaluations += r.evaluations
+        current.update(r.as_dict())
+        stage_log.append({"stage": sname, "free": list(names), "rms": math.sqrt(2 * r.cost / n_eff),
+                          "evaluations": r.evaluations, "iterations": r.iterations,
+                          "seconds": _time.perf_counter() - t_stage, "message": r.message})
+    assert r is not None
+    for x in exps:   # leave the experiments as built (held values of the first stage undone)
+        x.exp.settings = {**x.exp.settings, **{n: current[n] for n in free_names}}
+
+    params = dict(model_values)
+    params.update({n: float(current[n]) for n in free_names})
+    predictions = [_predict(x, params) for x in exps]
+    per = [float(np.sqrt(np.mean((p - np.asarray(x.trace.measured, float)) ** 2))) for p, x in zip(predictions, exps)]
+    total = float(np.sqrt(sum(np.sum((p - np.asarray(x.trace.measured, float)) ** 2) for p, x in zip(predictions, exps))
+                          / sum(len(x.trace.time) for x in exps)))
+    idx = {n: i for i, n in enumerate(r.names)}
+    values = {n: float(current[n]) for n in free_names}
+    std = {n: float(r.std_error[idx[n]]) for n in free_names}
+    ci = {n: (float(r.ci_low[idx[n]]), float(r.ci_high[idx[n]])) for n in free_names}
+    order = [idx[n] for n in free_names]
+    corr = np.asarray(r.correlation)[np.ix_(order, order)]
+    # the engine flags parameters in near-null directions of the Jacobian and those whose standard
+    # error, in its scaled coordinates, exceeds max_rel_std (log scale: relative to the value; linear
+    # scale: relative to the start). Judge linear-scaled ones against their fitted value as well:
+    # a value the data cannot tell from zero is not determined either.
+    max_rel = float(engine_options.get("max_rel_std", 0.5))
+    loose = [n for n in free_names if scaling[n] == "linear" and n not in r.unidentifiable
+             and not std[n] <= max_rel * abs(values[n])]
+    unid = [n for n in free_names if n in r.unidentifiable or n in loose]
+    return FitResult(
+        model=spec.canonical, parameters=params, free=list(free_names), values=values, std_error=std, ci95=ci,
+        correlation=corr, unidentifiable=unid,
+        identifiability_report=_identifiability_text(r, free_names, unid, loose, values, std, max_rel),
+        rms=total, rms_per_trace=per,
+        predictions=predictions, evaluations=evaluations, seconds=_time.perf_counter() - t_begin,
+        status=int(r.status), message=r.message, traces=[str(x.trace.stem.name) for x in exps],
+        noise=[float(x.noise) for x in exps], start=dict(x0), stages=stage_log,
+        condition=float(r.condition), singular_values=[float(v) for v in r.singular_values])
+
+
+def _identifiability_text(r: idn.FitResult, names: Sequence[str], unid: Sequence[str], loose: Sequence[str],
+                          values: Mapping[str, float], std: Mapping[str, float], max_rel: float) -> str:
+    if not unid:
+        return (f"Every fitted parameter is determined by the data: standard errors below {max_rel:g} of "
+                f"the value, no near-null direction (condition number of the scaled Jacobian {r.condition:.3g}).")
+    lines = [f"Not determined by the data: {', '.join(unid)}."]
+    if r.report.strip():
+        lines.append("Directions of the scaled parameters (log-scaled: relative) the data hardly see, with "
+                     "their relative size sigma/sigma_max and standard deviation:")
+        lines += ["  " + ln for ln in r.report.strip().splitlines()]
+    for n in loose:
+        lines.append(f"  {n} = {values[n]:.6g} +- {std[n]:.3g}: the standard error exceeds {max_rel:g} of the "
+                     f"value (the data cannot tell it from zero)")
+    lines.append("Fix some of them (or add data that excites them) to determine the rest.")
+    return "\n".join(lines)
+
+
+def write_fit_params(path: str | Path, result: FitResult) -> Path:
+    """The canonical parameter file (``tether simulate/validate --params`` read it) with the fit's
+    statistics: {"model", "parameters", "intervals", "std_error", "correlation", "unidentifiable",
+    "rms"}."""
+    extra = {
+        "intervals": {n: [float(a), float(b)] for n, (a, b) in result.ci95.items()},
+        "std_error": {n: float(v) for n, v in result.std_error.items()},
+        "correlation": {"parameters": list(result.free),
+                        "matrix": [[float(v) for v in row] for row in np.asarray(result.correlation)]},
+        "unidentifiable": list(result.unidentifiable),
+        "rms": float(result.rms),
+        "rms_per_trace": {n: float(v) for n, v in zip(result.traces, result.rms_per_trace)},
+        "fitted": list(result.free),
+        "traces": list(result.traces),
+    }
+    return write_params(path, result.model, result.parameters, extra)
