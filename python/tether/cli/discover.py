@@ -1,0 +1,76 @@
+"""tether discover: name the effects a trace shows that the linear baseline lacks."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+NAME = "discover"
+HELP = "find the effects a trace shows that the linear baseline lacks, step by step, with evidence"
+DESCRIPTION = """\
+Start from the baseline of the trace format (linear spring, viscous damper, no slack; or --start
+MODEL) and repeat: fit the model to TRACE; locate where it disagrees with the record (time windows
+where the residual stands above the noise, which is estimated from the data itself, and the
+regimes they fall in: loading/unloading, large/small amplitude, slack, long holds); fit the model
+with each candidate effect the experiment can reveal added (nonlinear_stiffness, hysteresis,
+nonlinear_damping, slack for vibration; nonlinear_stiffness, hysteresis, creep for load tests);
+add the one that earns its parameters (BIC, the gap above the noise at least halved, and a
+better prediction of the last 40 % of the record from a fit to the first 60 %); until the model is
+within the noise or nothing earns its place. Then print a short account.
+
+--json OUT.json gets added_effects, rmse_initial, rmse_final (measured unit), noise_estimate, the
+steps (effect, where, evidence, rmse_before, rmse_after) and final_params. OUT.json is itself a
+parameter file of the discovered model: `tether simulate OTHER.csv --params OUT.json`.
+--report DIR writes DIR/index.html: the record against each model in turn, the residuals with the
+flagged windows, and the gap shrinking step by step.
+
+Exit status: 0 done; 2 bad input; 1 engine or FMU failure.
+"""
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("trace", metavar="TRACE", help="NAME.csv, NAME.json or NAME")
+    parser.add_argument("--start", metavar="MODEL", default="linear",
+                        help="model to start from (default: linear, the trace format's baseline)")
+    parser.add_argument("--json", metavar="OUT.json", required=True, help="discovery record to write")
+    parser.add_argument("--report", metavar="DIR", help="write DIR/index.html with the story in plots")
+
+
+def run(args) -> int:
+    from ..discover import DiscoveryError, account, discover, discovery_document
+    from ..models import parse_model
+    from ..report import write_json_atomic
+    from ..traces import read_trace
+    from . import CLIError, RUN_ERROR
+    from .common import check_output_path
+
+    trace = read_trace(args.trace)
+    parse_model(args.start, trace.experiment)                # a bad model string fails before any fit
+    out = Path(args.json)
+    if out.is_dir():
+        raise CLIError(f"--json {args.json}: is a directory; expected a file name such as discovery.json")
+    check_output_path(args.json, trace)
+    report = Path(args.report) if args.report else None
+    if report is not None and report.exists() and not report.is_dir():
+        raise CLIError(f"--report {report}: exists and is not a directory")
+
+    def progress(line: str) -> None:
+        sys.stderr.write(line + "\n")
+        sys.stderr.flush()
+
+    try:
+        d = discover(trace, start=args.start, progress=progress)
+    except DiscoveryError as e:
+        raise CLIError(str(e), RUN_ERROR) from None
+    except RuntimeError as e:
+        raise CLIError(f"the discovery failed: {e}", RUN_ERROR) from None
+    doc = discovery_document(d)
+    print(account(d))
+    write_json_atomic(out, doc)
+    if report is not None:
+        from ..discover_report import write_discovery_report
+
+        write_discovery_report(report, d, doc)
+        print(f"report: {report / 'index.html'}")
+    print(f"record: {out} (also a --params file of the discovered model)")
+    return 0

@@ -1,0 +1,1113 @@
+"""Discovery: which physical effects does a measured trace show that the linear baseline lacks?
+
+Starting from the baseline of the trace format (linear spring, viscous damper, no slack), the
+workflow repeats
+
+1. fit the current model to the trace;
+2. locate the disagreement: the time windows where the residual stands above the noise, and the
+   regimes they fall in (loading or unloading, large or small amplitude, slack, long holds); the
+   noise level comes from the data alone (high-order divided differences of the measured column,
+   or the difference between periods of a periodic record), never from a fit;
+3. rank the candidate effects of the shared vocabulary that the current model lacks and that the
+   experiment can reveal: by their signature in the residual (the share of the residual the
+   candidate's own extra terms can explain to first order) and by refitting the model with each
+   candidate added, judged on the whole record with a penalty per extra parameter and on the last
+   part of the record that a fit on the first part did not see;
+4. add the winner, with its evidence, and measure the gap again
+
+until the model reproduces the record to within the noise or no candidate earns its parameters.
+
+Effects map to model terms as in :mod:`tether.models`: ``nonlinear_stiffness`` -> the cubic law,
+``hysteresis`` -> a Bouc-Wen force, ``nonlinear_damping`` -> c(x) = c0 + c1|x| + c2 x^2,
+``creep`` -> Kelvin cells and slip, ``slack`` -> no compression (no parameter of its own).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .models import EXPERIMENT_RIG, ModelSpec, parse_model
+from .traces import Trace
+
+#: candidate effects per experiment (what the experiment can reveal), in the order they are tried
+CANDIDATES = {
+    "free_vibration": ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "slack"),
+    "forced": ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "slack"),
+    "load_unload": ("nonlinear_stiffness", "hysteresis", "creep"),
+    "creep": ("creep", "nonlinear_stiffness", "hysteresis"),
+}
+
+#: the Bouc-Wen terms the discovery never frees (classic law, z starts at 0)
+_BW_FIXED = {"bw_n": 1.0, "bw_b2": 0.0, "bw_b3": 0.0, "bw_b4": 0.0, "bw_b5": 0.0, "bw_b6": 0.0, "z0": 0.0}
+
+
+class DiscoveryError(RuntimeError):
+    """A discovery run that cannot go on (e.g. the baseline fit fails); one line."""
+
+
+# ---------------------------------------------------------------------------------------------
+# noise, from the data alone
+def _divided_difference_weights(ts: np.ndarray, k: int) -> np.ndarray:
+    """For each run of k+1 consecutive samples, the weights of the k-th divided difference (they
+    annihilate every polynomial of degree < k, on any time grid), scaled to unit Euclidean norm
+    so that white noise of standard deviation s gives differences of standard deviation s."""
+    m = len(ts) - k
+    W = np.ones((m, k + 1))
+    for j in range(k + 1):
+        for i in range(k + 1):
+            if i != j:
+                W[:, j] /= ts[j:j + m] - ts[i:i + m]
+    W /= np.linalg.norm(W, axis=1, keepdims=True)
+    return W
+
+
+def _robust_std(d: np.ndarray) -> float:
+    """Standard deviation of the bulk of d: MAD first, then the RMS of what lies within 4 MADs
+    (outliers such as load steps, slack kinks or impacts do not count)."""
+    d = d - np.median(d)
+    s = 1.4826 * float(np.median(np.abs(d)))
+    if s == 0.0:
+        return 0.0
+    keep = np.abs(d) < 4.0 * s
+    return float(np.sqrt(np.mean(d[keep] ** 2)) / 0.99931)     # 4-sigma truncation of a Gaussian
+
+
+@dataclass
+class NoiseEstimate:
+    sigma: float
+    method: str
+    by_order: list = field(default_factory=list)   # divided differences: the estimate for k = 1..8
+
+    def as_dict(self) -> dict:
+        return {"sigma": self.sigma, "method": self.method,
+                **({"by_order": self.by_order} if self.by_order else {})}
+
+
+def estimate_noise(trace: Trace, kmax: int = 8) -> NoiseEstimate:
+    """The standard deviation of the measurement noise, from the measured column alone.
+
+    A periodic record (``periodic_samples`` with two periods or more): the differences between
+    consecutive periods hold the noise only (divided by sqrt 2). Otherwise: the k-th divided
+    differences of the measured column on its own time grid (k = 1..8), scaled to unit gain for
+    white noise; a smooth signal contributes less the higher k until the noise dominates. The
+    estimate is the mean of the orders within 5 % of the smallest (robust scale of each).
+    """
+    y = np.asarray(trace.measured, float)
+    P = int(trace.periodic_samples or 0)
+    if P and len(y) >= 2 * P:
+        per = y[: (len(y) // P) * P].reshape(-1, P)
+        d = (per[1:] - per[:-1]).ravel() / math.sqrt(2.0)
+        return NoiseEstimate(_robust_std(d), f"differences between the {per.shape[0]} periods of the record")
+    t = np.asarray(trace.time, float)
+    ts = (t - t[0]) / float(np.median(np.diff(t)))
+    ests = []
+    for k in range(1, min(kmax, len(y) - 2) + 1):
+        W = _divided_difference_weights(ts, k)
+        m = len(y) - k
+        d = np.zeros(m)
+        for j in range(k + 1):
+            d += W[:, j] * y[j:j + m]
+        ests.append(_robust_std(d))
+    e = np.array(ests)
+    lo = float(e.min())
+    sigma = float(np.mean(e[e <= 1.05 * lo]))
+    return NoiseEstimate(sigma, "divided differences of orders 1-8 of the measured column (robust scale)",
+                         [float(v) for v in e])
+
+
+# ---------------------------------------------------------------------------------------------
+# the record's scales (for starting points of added terms)
+@dataclass
+class _Scales:
+    L0: float
+    ea: float              # EA of the linear baseline, first guess [N]
+    k: float               # stiffness EA/L0 [N/m]
+    amp: float             # typical displacement / elongation change [m]
+    eps: float             # typical strain (at balance, or at the largest load)
+    force: float           # typical hysteretic force scale [N]: k*amp (payload) or the largest load
+    rig: str
+
+
+def _scales(trace: Trace) -> _Scales:
+    from .fit import initial_estimate
+
+    L0 = float(trace.length_m)
+    y = np.asarray(trace.measured, float)
+    est = initial_estimate([trace], "linear")
+    if trace.rig == "load":
+        ea = float(est.get("EA", 0.0)) or 1e3
+        Tmax = max(float(np.max(trace.input)), 1e-6)
+        return _Scales(L0=L0, ea=ea, k=ea / L0, amp=max(float(np.ptp(y)), 1e-9),
+                       eps=max(Tmax / ea, 1e-9), force=Tmax, rig="load")
+    k = float(est.get("_k_lin", 0.0)) or float(est.get("EA", 1e3)) / L0
+    amp = float(est.get("_amp", 0.0)) or max(float(np.max(np.abs(y))), 1e-9)
+    m, g = float(trace.payload_mass_kg), float(trace.gravity_m_s2)
+    eps = (m * g / k) / L0 if g > 0 else amp / L0
+    return _Scales(L0=L0, ea=k * L0, k=k, amp=amp, eps=max(eps, 1e-9), force=max(k * amp, 1e-9), rig="payload")
+
+
+# ---------------------------------------------------------------------------------------------
+# fits (through tether.fit, the project's fitting layer)
+@dataclass
+class ModelFit:
+    """One model fitted to one record."""
+
+    spec: ModelSpec
+    effects: tuple                 # the discovery's effect names in this model, in the order added
+    params: dict                   # every parameter of the model (fitted and fixed), --params form
+    free: list
+    rms: float
+    predicted: np.ndarray = field(repr=False)
+    evaluations: int = 0
+    seconds: float = 0.0
+    ok: bool = True
+    message: str = ""
+    std_error: dict = field(default_factory=dict)
+    unidentifiable: list = field(default_factory=list)
+    best_start: int = 0
+
+    @property
+    def model(self) -> str:
+        return self.spec.canonical
+
+    @property
+    def n_free(self) -> int:
+        return len(self.free)
+
+
+def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
+    """What a discovery fit frees: the elastic law (EA; a1 a2 a3; Kawabata's LT RT F_ref and, in
+    load tests, the residual strain), the damping in the payload rig (c0; c1 c2), Bouc-Wen's A beta
+    gamma, and the creep compliances and slip (creep_J1..3, slip_capacity0, slip_rate). Unlike
+    tether.fit's defaults, a creep test frees the cubic too: two load levels leave one direction of
+    it undetermined, but discovery asks only whether the law lowers the error."""
+    from .fit import _CREEP_FREE
+
+    spec = spec.for_experiment(experiment)
+    payload = spec.rig == "payload"
+    names: list[str] = []
+    if spec.hysteresis == "kawabata":
+        names += ["kaw_LT", "kaw_RT", "kaw_F_ref"] + ([] if payload else ["kaw_residual"])
+    elif spec.stiffness == "cubic":
+        names += ["a1", "a2", "a3"]
+    else:
+        names += ["EA"]
+    if payload:
+        names += ["c0"] + (["c1", "c2"] if spec.damping == "displacement" else [])
+    if spec.hysteresis == "boucwen":
+        names += ["bw_A", "bw_beta", "bw_gamma"]
+    if spec.creep:
+        names += list(_CREEP_FREE)
+    return names
+
+
+def _floor(name: str, sc: _Scales) -> float:
+    """Smallest |start| of a linearly scaled parameter (the engine scales it by its start)."""
+    return {"a2": 1e-3 * sc.ea / sc.eps, "a3": 1e-3 * sc.ea / sc.eps ** 2,
+            "bw_beta": 1e-2 / sc.amp, "bw_gamma": 1e-2 / sc.amp}.get(name, 0.0)
+
+
+_POSITIVE = ("EA", "a1", "c0", "c1", "c2", "bw_A", "kaw_F_ref", "creep_J1", "creep_J2", "creep_J3",
+             "slip_capacity0", "slip_rate")
+
+
+def _clean_start(names: Sequence[str], start: dict, sc: _Scales) -> dict:
+    out = {}
+    for n in names:
+        if n not in start:
+            continue
+        v = float(start[n])
+        if not math.isfinite(v):
+            continue
+        fl = _floor(n, sc)
+        if fl and abs(v) < fl:
+            v = math.copysign(fl, v if v != 0 else 1.0)
+        if n in _POSITIVE and not v > 0:
+            continue                              # fit's data-based estimate instead
+        if n == "kaw_LT":
+            v = min(max(v, 0.06), 1.94)
+        if n == "kaw_RT":
+            v = min(max(v, 0.02), 1.0)
+        if n == "kaw_residual":
+            v = min(max(v, 0.0), 0.9)
+        out[n] = v
+    return out
+
+
+def predict(trace: Trace, spec: ModelSpec | str, params: dict) -> np.ndarray:
+    """The model's prediction of the measured column on the trace's grid, driven exactly as
+    tether.fit drives its fits (and tether.run the FMU)."""
+    from . import fit as F
+
+    spec = (parse_model(spec) if isinstance(spec, str) else spec).for_experiment(trace.experiment)
+    x = F._experiment(trace, spec, {})
+    return F._predict(x, {k: float(v) for k, v in params.items() if k in spec.parameters})
+
+
+def _truncated(trace: Trace, fraction: float) -> Trace:
+    """The first ``fraction`` of the record (whole periods of a periodic record)."""
+    n = len(trace.time)
+    P = int(trace.periodic_samples or 0)
+    m = max(1, int(round(fraction * n / P))) * P if P else max(20, int(round(fraction * n)))
+    m = min(m, n)
+    part = copy.copy(trace)
+    part.time = trace.time[:m]
+    part.measured = trace.measured[:m]
+    if trace.input is not None:
+        part.input = trace.input[:m]
+    return part
+
+
+class _OutOfTime(Exception):
+    pass
+
+
+def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, **options):
+    """One fit through tether.fit.fit_traces; on a failure of its staging (a log-scaled parameter
+    driven to 0 by the first stage) one direct engine fit of all free parameters instead. A fit
+    that runs past ``time_cap`` seconds (a start that wandered where the equations turn stiff and
+    every simulation crawls) is abandoned."""
+    from .fit import fit_traces
+
+    st = None if start is None else _clean_start(names, start, sc)
+    options = {**ENGINE_OPTIONS, **options}
+    t0 = time.perf_counter()
+
+    def watch(_p):
+        if time_cap is not None and time.perf_counter() - t0 > time_cap:
+            raise _OutOfTime()
+
+    try:
+        return fit_traces([trace], spec, free=names, start=st, progress=watch, **options), ""
+    except _OutOfTime:
+        return None, f"abandoned after {time_cap:.0f} s"
+    except (RuntimeError, ValueError) as exc:
+        msg = " ".join(str(exc).split())
+    if "log scaling" not in msg:
+        return None, msg
+    try:
+        return _fit_direct(trace, spec, names, st, **options), ""
+    except (RuntimeError, ValueError) as exc:
+        return None, " ".join(str(exc).split())
+
+
+@dataclass
+class _DirectResult:
+    """The parts of tether.fit.FitResult that discovery reads."""
+
+    parameters: dict
+    free: list
+    values: dict
+    std_error: dict
+    unidentifiable: list
+    rms: float
+    predictions: list
+    evaluations: int
+    message: str
+
+
+#: engine options for every discovery fit (e.g. n_threads)
+ENGINE_OPTIONS: dict = {}
+
+
+def _fit_direct(trace, spec, names, start, **options):
+    from . import fit as F
+    from . import identify_native as idn
+
+    spec = spec.for_experiment(trace.experiment)
+    est = F.initial_estimate([trace], spec)
+    defaults = F._fmu_defaults()
+    bounds = F._fmu_bounds()
+    values = {n: float(defaults[n]) for n in spec.parameters if n in defaults}
+    free, scaling = {}, {}
+    for n in names:
+        s = float((start or {}).get(n, est.get(n, defaults[n])))
+        lo, hi, s, how = F._bounds_and_start(n, s, bounds, {k: v for k, v in est.items() if k.startswith("_")})
+        if how == "log" and not s > 0:
+            s = max(abs(float(defaults[n])), 1e-6)
+        free[n], scaling[n] = (lo, hi, s), how
+    held = {n: v for n, v in values.items() if n not in names}
+    x = F._experiment(trace, spec, held)
+    x.exp.weight = math.sqrt(x.periods)
+    opts = dict(options)
+    if trace.experiment == "free_vibration":
+        opts.setdefault("horizon_stages", 3)
+    r = idn.fit([x.exp], free, scaling=scaling, **opts)
+    values.update(r.as_dict())
+    pred = F._predict(x, values)
+    rms = float(np.sqrt(np.mean((pred - np.asarray(trace.measured, float)) ** 2)))
+    return _DirectResult(parameters=values, free=list(names), values=r.as_dict(),
+                         std_error=dict(zip(r.names, map(float, r.std_error))), unidentifiable=list(r.unidentifiable),
+                         rms=rms, predictions=[pred], evaluations=r.evaluations, message=r.message)
+
+
+def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Sequence[dict | None], sc: _Scales,
+              quick_iterations: int = 12, time_cap: float | None = None, **options) -> ModelFit:
+    """Fit ``spec`` from each start (a few iterations each when there are several; None = tether.fit's
+    data-based estimate), then carry the best to convergence. ``best_start`` of the result is the
+    index of the start that won."""
+    t0 = time.perf_counter()
+    spec = spec.for_experiment(trace.experiment)
+    names = free_parameters(spec, trace.experiment)
+    evaluations = 0
+    best, best_i, msg = None, -1, ""
+    if len(starts) > 1:
+        for i, s in enumerate(starts):
+            r, m = _fit_once(trace, spec, names, s, sc, time_cap=time_cap, max_iterations=quick_iterations, **options)
+            if r is None:
+                msg = m
+                continue
+            evaluations += r.evaluations
+            if best is None or r.rms < best.rms:
+                best, best_i = r, i
+        if best is not None:
+            r, m = _fit_once(trace, spec, names, dict(best.values), sc,
+                             time_cap=None if time_cap is None else 2 * time_cap, **options)
+            if r is not None:
+                evaluations += r.evaluations
+                if r.rms <= best.rms:
+                    best = r
+    else:
+        best, msg = _fit_once(trace, spec, names, starts[0], sc,
+                              time_cap=None if time_cap is None else 2 * time_cap, **options)
+        best_i = 0
+        evaluations += best.evaluations if best is not None else 0
+    if best is None or not math.isfinite(best.rms):
+        return ModelFit(spec=spec, effects=tuple(effects), params={}, free=names, rms=float("inf"),
+                        predicted=np.full(len(trace.time), np.nan), evaluations=evaluations,
+                        seconds=time.perf_counter() - t0, ok=False, message=msg or "fit failed")
+    return ModelFit(spec=spec, effects=tuple(effects), params=dict(best.parameters), free=list(best.free),
+                    rms=float(best.rms), predicted=np.asarray(best.predictions[0]), evaluations=evaluations,
+                    seconds=time.perf_counter() - t0, message=best.message, std_error=dict(best.std_error),
+                    unidentifiable=list(best.unidentifiable), best_start=best_i)
+
+
+# ---------------------------------------------------------------------------------------------
+# starting points of a model with one more effect, warm from the current fit
+def _boucwen_start(sc: _Scales, share: float, z_share: float) -> dict:
+    """Bouc-Wen: initial stiffness ``share`` of k, saturation force ``z_share`` of the force scale."""
+    A = share * sc.k
+    zs = max(z_share * sc.force, 1e-9)
+    return {"bw_A": A, "bw_beta": A / (2 * zs), "bw_gamma": A / (2 * zs)}
+
+
+def _scale_elastic(p: dict, factor: float) -> dict:
+    q = dict(p)
+    for n in ("EA", "a1", "a2", "a3"):
+        if n in q:
+            q[n] = q[n] * factor
+    return q
+
+
+def candidate_starts(base: ModelFit, new: ModelSpec, sc: _Scales) -> list[dict | None]:
+    """Starting points for ``new`` (``base`` plus one effect): warm from the base fit, with the new
+    terms at a few data-scaled values; None adds tether.fit's own data-based estimate."""
+    warm = dict(base.params)
+    old = base.spec
+    starts: list[dict | None] = []
+    if new.hysteresis == "kawabata" and old.hysteresis != "kawabata":
+        starts.append(None)
+    elif new.stiffness == "cubic" and old.stiffness != "cubic":
+        ea = warm.get("EA", sc.ea)
+        w = dict(warm)
+        w.update(a1=ea, a2=0.0, a3=0.0)
+        starts.append(w)
+        if new.hysteresis == "none":
+            starts.append(None)
+    elif new.damping == "displacement" and old.damping != "displacement":
+        c0 = warm.get("c0", 1.0)
+        for r1, r2 in ((1e-2, 1e-3), (1.0, 1e-3), (1e-3, 1.0)):
+            w = dict(warm)
+            w.update(c0=c0 * (1.0 - 0.3 * max(r1, r2)), c1=r1 * c0 / sc.amp, c2=r2 * c0 / sc.amp ** 2)
+            starts.append(w)
+    elif new.hysteresis == "boucwen" and old.hysteresis != "boucwen":
+        # first a start next to the base model (a weak, barely saturating force): the fit can only
+        # go down from the base model's error
+        # (starts far from it, e.g. a strong force that saturates early, send lightly damped fits
+        # of a forced record into slow, useless regions), then tether.fit's equation-error estimate
+        w = _scale_elastic(warm, 0.97)
+        w.update(_boucwen_start(sc, 0.03, 0.5))
+        starts += [w, None]
+    elif new.creep and not old.creep:
+        for f in (1.0, 0.2, 0.01):
+            w = dict(warm)
+            w.update(creep_J1=1e-6 * f, creep_J2=2.5e-6 * f, creep_J3=1.5e-6 * f, slip_capacity0=4e-4 * f,
+                     slip_rate=1.5e-7)
+            starts.append(w)
+    elif new.slack and not old.slack:
+        starts.append(dict(warm))
+        if old.stiffness == "linear":
+            w = dict(warm)
+            w.update(EA=sc.ea)
+            starts.append(w)
+    else:
+        starts.append(warm)
+    return starts
+
+
+# ---------------------------------------------------------------------------------------------
+# where the model disagrees with the record
+@dataclass
+class Window:
+    start: float                  # [s]
+    end: float
+    rms: float                    # RMS residual in the window (measured unit)
+    share: float                  # share of the record's excess squared residual (above the noise)
+    regimes: list                 # regimes that cover most of the window
+
+    def as_dict(self) -> dict:
+        return {"start_s": self.start, "end_s": self.end, "rms": self.rms, "rms_over_noise": None,
+                "share_of_excess": self.share, "regimes": list(self.regimes)}
+
+
+def _moving_mean(v: np.ndarray, w: int) -> np.ndarray:
+    w = max(1, min(int(w), len(v)))
+    c = np.concatenate([[0.0], np.cumsum(v)])
+    out = np.empty(len(v))
+    h = w // 2
+    for_i = np.arange(len(v))
+    lo = np.clip(for_i - h, 0, len(v))
+    hi = np.clip(for_i - h + w, 0, len(v))
+    out[:] = (c[hi] - c[lo]) / np.maximum(hi - lo, 1)
+    return out
+
+
+def _window_length(trace: Trace) -> int:
+    """Samples in a disagreement window: about one period of the response (payload rig), or 1 %
+    of the record with at least 20 samples (load rig)."""
+    n = len(trace.time)
+    if trace.rig == "payload":
+        from .fit import _dominant_frequency as fdom
+
+        f = fdom(np.asarray(trace.time, float), np.asarray(trace.measured, float))
+        dt = float(np.median(np.diff(trace.time)))
+        return int(min(max(1.0 / (f * dt), 20), n / 4))
+    return int(min(max(0.01 * n, 20), n / 4))
+
+
+def regimes(trace: Trace, fit: ModelFit | None = None) -> dict[str, np.ndarray]:
+    """Boolean masks of the regimes of the record.
+
+    Payload rig: ``loading`` (the tether stretches, x' > 0) and ``unloading``; ``large amplitude``
+    (the local swing is more than half the record's largest) and ``small amplitude``; ``slack``
+    (the elongation u_b + x, with the current model's balance stretch u_b, is below zero).
+    Load rig: ``loading`` / ``unloading`` (the load rises / falls), ``hold`` (the load stays put
+    for at least 2 % of the record), ``high load`` (above half the largest) and ``low load``."""
+    t = np.asarray(trace.time, float)
+    y = np.asarray(trace.measured, float)
+    n = len(t)
+    w = _window_length(trace)
+    out: dict[str, np.ndarray] = {}
+    if trace.rig == "payload":
+        ys = _moving_mean(y, max(3, w // 12))
+        v = np.gradient(ys, t)
+        out["loading"] = v > 0
+        out["unloading"] = v < 0
+        dev = np.abs(y - np.median(y))
+        from scipy.ndimage import maximum_filter1d
+
+        env = maximum_filter1d(dev, size=max(3, w))
+        out["large amplitude"] = env > 0.5 * env.max()
+        out["small amplitude"] = ~out["large amplitude"]
+        ub = None
+        if fit is not None and fit.params and float(trace.gravity_m_s2) > 0:
+            ub = balance_elongation(trace, fit)
+        out["slack"] = (y + ub < 0) if ub is not None else np.zeros(n, bool)
+    else:
+        T = np.asarray(trace.input, float)
+        dT = np.gradient(T, t)
+        scale = max(float(np.max(np.abs(dT))), 1e-300)
+        moving = np.abs(dT) > 1e-3 * scale
+        out["loading"] = dT > 1e-3 * scale
+        out["unloading"] = dT < -1e-3 * scale
+        hold = ~moving
+        # only holds that last: runs of at least 2 % of the record's duration
+        min_len = 0.02 * (t[-1] - t[0])
+        edges = np.flatnonzero(np.diff(np.r_[0, hold.astype(int), 0]))
+        long_hold = np.zeros(n, bool)
+        for a, b in zip(edges[::2], edges[1::2]):
+            if t[b - 1] - t[a] >= min_len:
+                long_hold[a:b] = True
+        out["hold"] = long_hold
+        out["high load"] = T > 0.5 * T.max()
+        out["low load"] = ~out["high load"]
+    return out
+
+
+def balance_elongation(trace: Trace, fit: ModelFit) -> float | None:
+    """The model's static stretch under the payload's weight (payload rig)."""
+    m, g, L0 = float(trace.payload_mass_kg), float(trace.gravity_m_s2), float(trace.length_m)
+    W = m * g - float(fit.params.get("z0", 0.0) if fit.spec.hysteresis == "boucwen" else 0.0)
+    p = fit.params
+    if fit.spec.hysteresis == "kawabata":
+        pe = 2.0 / p["kaw_LT"] - 1.0
+        return L0 * p["kaw_eps_ref"] * (W / p["kaw_F_ref"]) ** (1.0 / pe) if W > 0 else 0.0
+    if fit.spec.stiffness == "cubic":
+        a1, a2, a3 = p["a1"], p["a2"], p["a3"]
+        roots = np.roots([a3, a2, a1, -W])
+        real = sorted(float(r.real) for r in roots if abs(r.imag) < 1e-9 * max(1.0, abs(r)) and r.real > 0)
+        return L0 * real[0] if real else None
+    return L0 * W / p["EA"] if p.get("EA") else None
+
+
+def disagreement(trace: Trace, fit: ModelFit, sigma: float, masks: dict | None = None) -> list[Window]:
+    """Time windows where the local RMS residual (over about one response period, or 1 % of a load
+    test) stands above the noise (above sigma * sqrt(1 + 4 sqrt(2/w)), where pure noise rarely gets,
+    and at least 1.2 sigma) and above a third of its largest value."""
+    t = np.asarray(trace.time, float)
+    r = np.asarray(fit.predicted - trace.measured, float)
+    w = _window_length(trace)
+    ms = _moving_mean(r ** 2, w)
+    thr = sigma ** 2 * max(1.0 + 4.0 * math.sqrt(2.0 / w), 1.44)
+    # where the disagreement is: above the noise, and not far below its worst (a local RMS above a
+    # third of the largest), so that a residual above the noise everywhere still shows where it peaks
+    flag = ms > max(thr, 0.1 * float(np.max(ms)))
+    masks = masks if masks is not None else regimes(trace, fit)
+    excess_total = float(np.sum(np.maximum(r ** 2 - sigma ** 2, 0.0))) or 1e-300
+    edges = np.flatnonzero(np.diff(np.r_[0, flag.astype(int), 0]))
+    runs = [[a, b] for a, b in zip(edges[::2], edges[1::2])]
+    merged: list[list[int]] = []
+    for a, b in runs:                      # close gaps shorter than a window
+        if merged and a - merged[-1][1] < w:
+            merged[-1][1] = b
+        else:
+            merged.append([a, b])
+    out = []
+    for a, b in merged:
+        if b - a < max(3, w // 2):
+            continue
+        seg = slice(a, b)
+        rr = r[seg]
+        share = float(np.sum(np.maximum(rr ** 2 - sigma ** 2, 0.0))) / excess_total
+        cover = []
+        for name, mk in masks.items():
+            frac = float(np.mean(mk[seg]))
+            if frac >= 0.5 and name not in ("loading", "unloading"):
+                cover.append(name)
+        # loading / unloading: where the excess lies
+        e = np.maximum(rr ** 2 - sigma ** 2, 0.0)
+        tot = float(e.sum()) or 1e-300
+        for name in ("loading", "unloading"):
+            if name in masks and float(e[masks[name][seg]].sum()) / tot >= 0.7:
+                cover.append(name)
+        out.append(Window(float(t[a]), float(t[b - 1]), float(np.sqrt(np.mean(rr ** 2))), share, cover))
+    return out
+
+
+def regime_table(trace: Trace, fit: ModelFit, sigma: float, masks: dict) -> dict:
+    """Per regime: share of the samples, RMS residual / noise, and share of the excess residual."""
+    r = np.asarray(fit.predicted - trace.measured, float)
+    e = np.maximum(r ** 2 - sigma ** 2, 0.0)
+    tot = float(e.sum()) or 1e-300
+    out = {}
+    for name, mk in masks.items():
+        if not mk.any():
+            continue
+        out[name] = {"samples": float(np.mean(mk)), "rms_over_noise": float(np.sqrt(np.mean(r[mk] ** 2)) / sigma),
+                     "share_of_excess": float(e[mk].sum()) / tot}
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# signatures: what the residual looks like, effect by effect
+def _branch_split(level: np.ndarray, r: np.ndarray, up: np.ndarray, down: np.ndarray, bins: int = 20):
+    """Mean residual per level bin on the rising and the falling branch: the share of the residual
+    energy that is common to both (a function of the level: a static law) and the share that
+    differs between them (a loop: hysteresis)."""
+    tot = float(np.sum(r ** 2)) or 1e-300
+    sel = up | down
+    if sel.sum() < 2 * bins:
+        return 0.0, 0.0
+    edges = np.quantile(level[sel], np.linspace(0, 1, bins + 1))
+    idx = np.clip(np.searchsorted(edges, level, side="right") - 1, 0, bins - 1)
+    common = diff = 0.0
+    for b in range(bins):
+        iu = (idx == b) & up
+        idn_ = (idx == b) & down
+        if iu.sum() < 2 or idn_.sum() < 2:
+            continue
+        mu, md = float(np.mean(r[iu])), float(np.mean(r[idn_]))
+        n = int(iu.sum() + idn_.sum())
+        common += n * (0.5 * (mu + md)) ** 2
+        diff += n * (0.5 * (mu - md)) ** 2
+    return common / tot, diff / tot
+
+
+def _phase_amplitude(trace: Trace, fit: ModelFit, w: int):
+    """Payload rig: the residual in each window of about one period split into an amplitude error
+    (along the predicted displacement) and a phase error (along the predicted velocity); shares of
+    the residual energy."""
+    t = np.asarray(trace.time, float)
+    x = np.asarray(fit.predicted, float)
+    v = np.gradient(x, t)
+    r = np.asarray(fit.predicted - trace.measured, float)
+    tot = float(np.sum(r ** 2)) or 1e-300
+    amp = ph = 0.0
+    for a in range(0, len(t) - w + 1, w):
+        s = slice(a, a + w)
+        X = np.column_stack([x[s] - np.mean(x[s]), v[s]])
+        if not np.all(np.isfinite(X)) or np.linalg.matrix_rank(X) < 2:
+            continue
+        c, *_ = np.linalg.lstsq(X, r[s], rcond=None)
+        amp += float(np.sum((c[0] * X[:, 0]) ** 2))
+        ph += float(np.sum((c[1] * X[:, 1]) ** 2))
+    return amp / tot, ph / tot
+
+
+def signatures(trace: Trace, fit: ModelFit, sigma: float, masks: dict) -> dict[str, dict]:
+    """For each candidate effect of the experiment, a score in [0, 1] (how much of the residual has
+    the shape that effect leaves) and one line saying what was measured."""
+    r = np.asarray(fit.predicted - trace.measured, float)
+    excess = np.maximum(r ** 2 - sigma ** 2, 0.0)
+    ex_tot = float(excess.sum()) or 1e-300
+    out: dict[str, dict] = {}
+    cands = CANDIDATES[trace.experiment]
+    if trace.rig == "payload":
+        w = _window_length(trace)
+        amp, ph = _phase_amplitude(trace, fit, w)
+        big = masks["large amplitude"]
+        big_share = float(excess[big].sum()) / ex_tot
+        big_frac = float(np.mean(big))
+        out["nonlinear_stiffness"] = {
+            "score": ph, "text": f"{100 * ph:.0f} % of the residual is a phase (frequency) error, period by period"}
+        out["nonlinear_damping"] = {
+            "score": amp * min(1.0, big_share / max(big_frac, 1e-9) / 2.0 + 0.5),
+            "text": f"{100 * amp:.0f} % of the residual is an amplitude (decay) error; the large-amplitude part of "
+                    f"the record ({100 * big_frac:.0f} % of it) holds {100 * big_share:.0f} % of the excess"}
+        out["hysteresis"] = {
+            "score": 2.0 * min(amp, ph),
+            "text": f"both an amplitude ({100 * amp:.0f} %) and a phase ({100 * ph:.0f} %) error: stiffness and "
+                    f"damping that change with amplitude"}
+        sl = masks.get("slack")
+        if sl is not None and sl.any():
+            share = float(excess[sl].sum()) / ex_tot
+            out["slack"] = {"score": share,
+                            "text": f"the measured elongation (balance stretch {balance_elongation(trace, fit):.4g} m "
+                                    f"plus displacement) is below zero in {100 * np.mean(sl):.1f} % of the record, "
+                                    f"which holds {100 * share:.0f} % of the excess residual"}
+        else:
+            out["slack"] = {"score": 0.0, "text": "the measured elongation never goes below zero (with the model's "
+                                                  "balance stretch): nothing shows a slack tether"}
+    else:
+        T = np.asarray(trace.input, float)
+        common, diff = _branch_split(T, r, masks["loading"], masks["unloading"])
+        hold = masks["hold"]
+        # within holds: the share of the residual that is a drift in time (a line per hold)
+        drift = 0.0
+        if hold.any():
+            t = np.asarray(trace.time, float)
+            edges = np.flatnonzero(np.diff(np.r_[0, hold.astype(int), 0]))
+            tot = float(np.sum(r ** 2)) or 1e-300
+            level = 0.0
+            for a, b in zip(edges[::2], edges[1::2]):
+                if b - a < 5:
+                    continue
+                X = np.column_stack([np.ones(b - a), t[a:b] - t[a]])
+                c, *_ = np.linalg.lstsq(X, r[a:b], rcond=None)
+                drift += float(np.sum((c[1] * X[:, 1] - np.mean(c[1] * X[:, 1])) ** 2)) / tot
+                level += float((b - a) * c[0] ** 2) / tot
+            hold_share = float(excess[hold].sum()) / ex_tot
+            out["creep"] = {"score": drift,
+                            "text": f"{100 * drift:.0f} % of the residual is a drift in time while the load is held "
+                                    f"(holds: {100 * np.mean(hold):.0f} % of the record, {100 * hold_share:.0f} % of "
+                                    f"the excess)"}
+            if trace.experiment == "creep":
+                common = max(common, min(level, 1.0))
+        else:
+            out["creep"] = {"score": 0.0, "text": "no long hold of the load: a drift in time would show only as a "
+                                                  "lag between loading and unloading"}
+        out["nonlinear_stiffness"] = {
+            "score": common, "text": f"{100 * common:.0f} % of the residual is the same function of the load on "
+                                     f"loading and unloading (a static law)"}
+        out["hysteresis"] = {
+            "score": diff, "text": f"{100 * diff:.0f} % of the residual differs between loading and unloading at "
+                                   f"the same load (a loop)"}
+    return {k: v for k, v in out.items() if k in cands}
+
+
+# ---------------------------------------------------------------------------------------------
+# the loop
+#: the model reproduces the record when its RMS error is at most this multiple of the noise
+WITHIN_NOISE = 1.1
+#: the first part of the record the held-out fits see (periodic records: whole periods)
+FIT_PART = 0.6
+
+
+@dataclass
+class CandidateResult:
+    effect: str
+    model: str
+    added_parameters: int
+    rms: float
+    heldout_rms: float
+    bic_change: float
+    signature: float
+    signature_text: str
+    fit: ModelFit = field(repr=False, default=None)
+    part_fit: ModelFit = field(repr=False, default=None)
+    verdict: str = ""
+    accepted: bool = False
+
+    def as_dict(self, sigma: float) -> dict:
+        return {"effect": self.effect, "model": self.model, "added_parameters": self.added_parameters,
+                "rmse": self.rms, "rmse_over_noise": self.rms / sigma, "heldout_rmse": self.heldout_rms,
+                "heldout_rmse_over_noise": self.heldout_rms / sigma, "bic_change": self.bic_change,
+                "signature": self.signature, "signature_text": self.signature_text,
+                "seconds": self.fit.seconds + (self.part_fit.seconds if self.part_fit else 0.0) if self.fit else 0.0,
+                "verdict": self.verdict, "accepted": self.accepted}
+
+
+@dataclass
+class Step:
+    model_before: str
+    rms_before: float
+    heldout_before: float
+    windows: list
+    regimes: dict
+    candidates: list                # CandidateResult, best first
+    effect: str | None = None       # the effect added (None: the search stopped here)
+    evidence: str = ""
+    rms_after: float | None = None
+    model_after: str | None = None
+
+
+@dataclass
+class Discovery:
+    trace: Trace
+    noise: NoiseEstimate
+    start_model: str
+    fits: list                      # ModelFit of the start model and after each added effect
+    steps: list                     # Step per round (the last one may add nothing)
+    stop_reason: str
+    seconds: float
+    heldout_start: float            # time where the held-out part begins [s]
+    removals: list = field(default_factory=list)   # effects dropped again (Removal)
+
+    @property
+    def final(self) -> ModelFit:
+        return self.fits[-1]
+
+    @property
+    def added_effects(self) -> list[str]:
+        """The effects of the final model that the run added, in the order they were added."""
+        return [s.effect for s in self.steps if s.effect and s.effect in self.final.effects]
+
+
+def _model_for(spec: ModelSpec, effect: str) -> ModelSpec | None:
+    from dataclasses import replace
+
+    if effect == "nonlinear_stiffness":
+        return None if spec.hysteresis == "kawabata" or spec.stiffness == "cubic" else replace(spec, stiffness="cubic")
+    if effect == "hysteresis":
+        return None if spec.hysteresis != "none" else replace(spec, hysteresis="boucwen")
+    if effect == "nonlinear_damping":
+        return None if spec.damping == "displacement" else replace(spec, damping="displacement")
+    if effect == "creep":
+        return None if spec.creep else replace(spec, creep=True)
+    if effect == "slack":
+        return None if spec.slack else replace(spec, slack=True)
+    raise ValueError(effect)
+
+
+def _bic(rms: float, k: int, n: int) -> float:
+    return n * math.log(max(rms, 1e-300) ** 2) + k * math.log(n)
+
+
+def _heldout(trace: Trace, spec: ModelSpec, params: dict, first: int) -> float:
+    try:
+        y = predict(trace, spec, params)
+    except RuntimeError:
+        return float("inf")
+    r = y[first:] - np.asarray(trace.measured, float)[first:]
+    v = float(np.sqrt(np.mean(r ** 2)))
+    return v if math.isfinite(v) else float("inf")
+
+
+def _gap(rms: float, sigma: float) -> float:
+    """The part of an RMS error the noise does not explain: sqrt(rms^2 - sigma^2)."""
+    return math.sqrt(max(rms ** 2 - sigma ** 2, 0.0))
+
+
+#: a candidate must shrink the gap above the noise to at most this fraction, on the whole record ...
+GAP_FRACTION = 0.5
+#: ... and on the held-out part (judged by a fit to the first part only)
+HELDOUT_GAP_FRACTION = 0.7
+
+
+def full_data_verdict(sigma: float, rms_before: float, rms_after: float, bic_change: float) -> tuple[bool, str]:
+    """Whole record: a lower BIC, and the gap above the noise at most GAP_FRACTION of what it was."""
+    g0, g1 = _gap(rms_before, sigma), _gap(rms_after, sigma)
+    if not g0 > 0 or not rms_after < rms_before:
+        return False, f"nothing to gain: RMS error {rms_before / sigma:.2f} -> {rms_after / sigma:.2f} x noise"
+    why = []
+    if not bic_change < 0:
+        why.append(f"BIC rises by {bic_change:.1f}")
+    if not g1 <= GAP_FRACTION * g0:
+        why.append(f"the gap above the noise shrinks only from {g0 / sigma:.2f} to {g1 / sigma:.2f} sigma")
+    if why:
+        return False, "; ".join(why)
+    return True, f"gap {g0 / sigma:.2f} -> {g1 / sigma:.2f} sigma, BIC {bic_change:+.0f}"
+
+
+def heldout_verdict(sigma: float, held_before: float, held_after: float) -> tuple[bool, str]:
+    """The last part of the record, predicted by fits to the first part: the gap above the noise at
+    most HELDOUT_GAP_FRACTION of what it was."""
+    h0, h1 = _gap(held_before, sigma), _gap(held_after, sigma)
+    if not h1 <= HELDOUT_GAP_FRACTION * h0 or not math.isfinite(held_after):
+        return False, f"on the held-out part the gap goes from {h0 / sigma:.2f} to {h1 / sigma:.2f} sigma"
+    return True, f"held-out gap {h0 / sigma:.2f} -> {h1 / sigma:.2f} sigma"
+
+
+def _reduced_starts(cur: ModelFit, reduced: ModelSpec, sc: _Scales) -> list:
+    """Starts for ``cur`` without one of its effects: its own values (terms of the removed effect
+    dropped), and tether.fit's data-based estimate."""
+    p = {k: v for k, v in cur.params.items() if k in reduced.parameters}
+    if cur.spec.stiffness == "cubic" and reduced.stiffness == "linear":
+        p["EA"] = sc.ea
+    return [p, None]
+
+
+def _without(spec: ModelSpec, effect: str) -> ModelSpec:
+    from dataclasses import replace
+
+    return {"nonlinear_stiffness": lambda: replace(spec, stiffness="linear"),
+            "hysteresis": lambda: replace(spec, hysteresis="none"),
+            "nonlinear_damping": lambda: replace(spec, damping="viscous"),
+            "creep": lambda: replace(spec, creep=False),
+            "slack": lambda: replace(spec, slack=False)}[effect]()
+
+
+@dataclass
+class Removal:
+    effect: str
+    model_before: str
+    model_after: str
+    rms_before: float
+    rms_after: float
+    reason: str
+
+
+def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None] | None = None,
+             max_steps: int = 4, heldout_candidates: int = 2) -> Discovery:
+    """Run the discovery loop on one trace (see the module docstring). ``progress`` receives one
+    line per stage."""
+    t_begin = time.perf_counter()
+    say = progress or (lambda s: None)
+    noise = estimate_noise(trace)
+    sigma = noise.sigma
+    if not sigma > 0:
+        raise DiscoveryError(f"{trace.name}: the measured column shows no noise (a noise-free record): there is "
+                             "no scale to judge a gap against")
+    sc = _scales(trace)
+    n = len(trace.time)
+    part = _truncated(trace, FIT_PART)
+    first = len(part.time)
+    sc_part = _scales(part)
+    spec = parse_model(start, trace.experiment)
+    base_effects = tuple(spec.effects)
+    say(f"noise {sigma:.3g} m ({noise.method}); fitting the start model {spec.canonical}")
+    cur = fit_model(trace, spec, base_effects, [None], sc)
+    if not cur.ok:
+        raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
+    t_sim = time.perf_counter()
+    predict(trace, cur.spec, cur.params)
+    t_sim = time.perf_counter() - t_sim
+    cap = max(5.0, 2000.0 * t_sim)
+
+    def fit(tr, sp, eff, starts, scales):
+        return fit_model(tr, sp, eff, starts, scales, time_cap=cap)
+
+    cur_part = fit(part, spec, base_effects, [cur.params], sc_part)
+    cur_held = _heldout(trace, spec, cur_part.params, first)
+    say(f"{cur.model}: RMS error {cur.rms:.3g} m = {cur.rms / sigma:.2f} x noise ({cur.seconds:.1f} s)")
+    fits = [cur]
+    steps: list[Step] = []
+    removals: list[Removal] = []
+    stop = ""
+    while True:
+        masks = regimes(trace, cur)
+        windows = disagreement(trace, cur, sigma, masks)
+        step = Step(model_before=cur.model, rms_before=cur.rms, heldout_before=cur_held, windows=windows,
+                    regimes=regime_table(trace, cur, sigma, masks), candidates=[])
+        steps.append(step)
+        if cur.rms <= WITHIN_NOISE * sigma:
+            stop = f"the model reproduces the record within the noise (RMS error {cur.rms / sigma:.2f} x noise)"
+            break
+        if len([s for s in steps if s.effect]) >= max_steps:
+            stop = f"stopped after {max_steps} added effects"
+            break
+        sig = signatures(trace, cur, sigma, masks)
+        todo = [(e, _model_for(cur.spec, e)) for e in CANDIDATES[trace.experiment] if e not in cur.effects]
+        todo = [(e, m) for e, m in todo if m is not None]
+        if not todo:
+            stop = "every effect the experiment can reveal is in the model"
+            break
+        results = []
+        for eff, new in todo:
+            fm = fit(trace, new, cur.effects + (eff,), candidate_starts(cur, new, sc), sc)
+            dk = fm.n_free - cur.n_free
+            bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
+            cr = CandidateResult(effect=eff, model=fm.model, added_parameters=dk, rms=fm.rms,
+                                 heldout_rms=float("nan"), bic_change=bic,
+                                 signature=float(sig.get(eff, {}).get("score", 0.0)),
+                                 signature_text=sig.get(eff, {}).get("text", ""), fit=fm)
+            if fm.ok:
+                cr.accepted, cr.verdict = full_data_verdict(sigma, cur.rms, fm.rms, bic)
+            else:
+                cr.accepted, cr.verdict = False, f"the fit failed: {fm.message}"
+            say(f"  + {eff}: RMS error {fm.rms / sigma:.2f} x noise with {dk} more parameter{'s' if dk != 1 else ''} "
+                f"({fm.seconds:.1f} s)")
+            results.append(cr)
+        # the held-out test for the best few that pass on the whole record
+        passing = sorted([c for c in results if c.accepted], key=lambda c: c.bic_change)
+        for c in passing[:heldout_candidates]:
+            new = c.fit.spec
+            starts = candidate_starts(cur_part, new, sc_part)
+            pf = fit(part, new, c.fit.effects, [starts[min(c.fit.best_start, len(starts) - 1)]], sc_part)
+            c.part_fit = pf
+            c.heldout_rms = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
+            ok, why = heldout_verdict(sigma, cur_held, c.heldout_rms)
+            c.accepted = ok
+            c.verdict = f"{c.verdict}; {why}"
+            say(f"  {c.effect}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was {cur_held / sigma:.2f})")
+        for c in passing[heldout_candidates:]:
+            c.accepted = False
+            c.verdict += "; not tested on the held-out part (a better candidate was)"
+        results.sort(key=lambda c: (not c.accepted, c.bic_change))
+        step.candidates = results
+        win = results[0]
+        for c in results:
+            say(f"  {c.effect}: {'earns' if c.accepted and c is win else 'does not earn'} its parameters: {c.verdict}")
+        if not win.accepted:
+            stop = "no candidate earns its parameters"
+            for c in results:
+                c.fit = c.part_fit = None
+            break
+        step.effect = win.effect
+        step.evidence = _evidence(win, windows)
+        step.rms_after = win.rms
+        step.model_after = win.model
+        say(f"added {win.effect}: RMS error {cur.rms / sigma:.2f} -> {win.rms / sigma:.2f} x noise")
+        cur, cur_part, cur_held = win.fit, win.part_fit, win.heldout_rms
+        fits.append(cur)
+        for c in results:                       # fitted curves of the winner only
+            if c is not win:
+                c.fit = c.part_fit = None
+        # does an effect added earlier still earn its parameters next to the new one?
+        for e in [x for x in cur.effects if x not in base_effects and x != win.effect]:
+            red = _without(cur.spec, e).for_experiment(trace.experiment)
+            rf = fit(trace, red, tuple(x for x in cur.effects if x != e), _reduced_starts(cur, red, sc), sc)
+            if not rf.ok:
+                continue
+            bic = _bic(cur.rms, cur.n_free, n) - _bic(rf.rms, rf.n_free, n)
+            keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic)
+            if keep:
+                continue
+            say(f"removed {e}: without it the RMS error is {rf.rms / sigma:.2f} x noise ({why})")
+            removals.append(Removal(e, cur.model, rf.model, cur.rms, rf.rms,
+                                    f"next to {win.effect} it no longer earns its parameters: {why}"))
+            rp = fit(part, red, rf.effects, [rf.params], sc_part)
+            cur, cur_part = rf, rp
+            cur_held = _heldout(trace, red, rp.params, first) if rp.ok else float("inf")
+            fits.append(cur)
+            break
+    return Discovery(trace=trace, noise=noise, start_model=spec.canonical, fits=fits, steps=steps, stop_reason=stop,
+                     seconds=time.perf_counter() - t_begin, heldout_start=float(trace.time[first]),
+                     removals=removals)
+
+
+def _evidence(win: CandidateResult, windows: list) -> str:
+    where = ""
+    if windows:
+        top = sorted(windows, key=lambda w: -w.share)[:2]
+        where = "; the disagreement was largest in " + ", ".join(
+            f"{w.start:.4g}-{w.end:.4g} s ({', '.join(w.regimes) or 'no single regime'})" for w in top)
+    return f"{win.signature_text}{where}; refit with {win.effect}: {win.verdict}"
+
+
+# ---------------------------------------------------------------------------------------------
+# the account: JSON and text
+def _window_dict(w: Window, sigma: float) -> dict:
+    d = w.as_dict()
+    d["rms_over_noise"] = w.rms / sigma
+    return d
+
+
+def discovery_document(d: Discovery) -> dict:
+    """The JSON record of a discovery run. Its top-level ``model`` and ``parameters`` make the file
+    itself a ``--params`` file of the discovered model (``final_params`` holds the same)."""
+    sigma = d.noise.sigma
+    tr = d.trace
+    unit = "m"
+    steps = []
+    for st in d.steps:
+        if not st.effect or st.effect not in d.final.effects:
+            continue
+        steps.append({"effect": st.effect, "model_before": st.model_before, "model_after": st.model_after,
+                      "where": [_window_dict(w, sigma) for w in st.windows],
+                      "evidence": st.evidence, "rmse_before": st.rms_before, "rmse_after": st.rms_after,
+                      "rmse_before_over_noise": st.rms_before / sigma, "rmse_after_over_noise": st.rms_after / sigma,
+                      "heldout_rmse_before": st.heldout_before,
+                      "candidates": [c.as_dict(sigma) for c in st.candidates]})
+    rounds = [{"model": st.model_before, "rmse": st.rms_before, "rmse_over_noise": st.rms_before / sigma,
+               "heldout_rmse": st.heldout_before, "windows": [_window_dict(w, sigma) for w in st.windows],
+               "regimes": st.regimes, "candidates": [c.as_dict(sigma) for c in st.candidates],
+               "added": st.effect} for st in d.steps]
+    final = d.final
+    final_params = {"model": final.model, "parameters": {k: float(v) for k, v in final.params.items()}}
+    return {
+        "format": "tether-discovery/1",
+        "trace": str(tr.stem),
+        "experiment": tr.experiment,
+        "measured_column": tr.measured_column,
+        "unit": unit,
+        "samples": int(len(tr.time)),
+        "start_model": d.start_model,
+        "added_effects": d.added_effects,
+        "final_model": final.model,
+        "rmse_initial": d.fits[0].rms,
+        "rmse_final": final.rms,
+        "noise_estimate": sigma,
+        "noise_method": d.noise.method,
+        "rmse_initial_over_noise": d.fits[0].rms / sigma,
+        "rmse_final_over_noise": final.rms / sigma,
+        "heldout_from_s": d.heldout_start,
+        "steps": steps,
+        "removed": [{"effect": r.effect, "model_before": r.model_before, "model_after": r.model_after,
+                     "rmse_before": r.rms_before, "rmse_after": r.rms_after, "reason": r.reason}
+                    for r in d.removals],
+        "rounds": rounds,
+        "stop_reason": d.stop_reason,
+        "seconds": d.seconds,
+        "final_params": final_params,
+        "model": final_params["model"],
+        "parameters": final_params["parameters"],
+    }
+
+
+def account(d: Discovery) -> str:
+    """A short account for the terminal."""
+    sigma = d.noise.sigma
+    lines = [f"{d.trace.name} ({d.trace.experiment}): noise {sigma:.3g} m, estimated from the data "
+             f"({d.noise.method})",
+             f"start: {d.start_model}, RMS error {d.fits[0].rms:.3g} m = {d.fits[0].rms / sigma:.2f} x noise"]
+    for i, st in enumerate([s for s in d.steps if s.effect], 1):
+        wins = sorted(st.windows, key=lambda w: -w.share)[:3]
+        where = ", ".join(f"{w.start:.4g}-{w.end:.4g} s" for w in wins) or "spread over the record"
+        lines.append(f"{i}. {st.effect}: RMS error {st.rms_before / sigma:.2f} -> {st.rms_after / sigma:.2f} x noise "
+                     f"(model {st.model_after}); disagreement in {where}")
+        lines.append(f"   evidence: {st.evidence}")
+    for r in d.removals:
+        lines.append(f"   removed {r.effect} again: {r.reason}")
+    if not d.added_effects:
+        lines.append("no effect is missing from the start model")
+    lines.append(f"stopped: {d.stop_reason}")
+    lines.append(f"discovered: {', '.join(d.added_effects) or 'nothing'}; final model {d.final.model}, RMS error "
+                 f"{d.final.rms:.3g} m = {d.final.rms / sigma:.2f} x noise ({d.seconds:.1f} s)")
+    return "\n".join(lines)

@@ -1,0 +1,168 @@
+"""The report of a discovery run (``tether discover --report DIR``): DIR/index.html, plots, and
+DIR/discovery.json (the same record as --json)."""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+import numpy as np
+
+from .report import PAGE_STYLE, pyplot, save_figure_atomic, write_json_atomic, write_text_atomic
+
+
+def plot_models(d, path: Path) -> None:
+    """The record against each model in turn, each with its residual and the flagged windows."""
+    plt = pyplot()
+    tr = d.trace
+    sigma = d.noise.sigma
+    col = tr.measured_column
+    load_test = tr.input_column == "load"
+    from .discover import disagreement
+
+    fits = d.fits
+    k = len(fits)
+    fig = plt.figure(figsize=(12 if load_test else 10, 3.6 * k + 0.4))
+    gs = fig.add_gridspec(2 * k, 2 if load_test else 1, height_ratios=[2, 1] * k,
+                          width_ratios=[1.7, 1] if load_test else [1])
+    t = np.asarray(tr.time, float)
+    for i, f in enumerate(fits):
+        ax = fig.add_subplot(gs[2 * i, 0])
+        ax.plot(t, tr.measured, ".", ms=1.5, color="0.55", label=f"measured {col}")
+        ax.plot(t, f.predicted, "-", lw=0.9, color=f"C{i}", label=f"model {f.model}")
+        title = "start" if i == 0 else f"model {i + 1}"
+        ax.set_title(f"{title}: {f.model}, RMS error {f.rms:.3g} m = {f.rms / sigma:.2f} × noise", fontsize=9)
+        ax.set_ylabel(f"{col} [m]")
+        ax.legend(loc="upper right", fontsize=7)
+        ax.grid(alpha=0.3)
+        ax2 = fig.add_subplot(gs[2 * i + 1, 0], sharex=ax)
+        r = f.predicted - tr.measured
+        ax2.plot(t, r, "-", lw=0.6, color="C3", label="model - measured")
+        ax2.axhspan(-sigma, sigma, color="C2", alpha=0.2, label=f"± noise σ ({sigma:.2g} m, from the data)")
+        if i < k - 1 or f.rms > 1.1 * sigma:
+            for j, w in enumerate(disagreement(tr, f, sigma)):
+                ax2.axvspan(w.start, w.end, color="orange", alpha=0.25,
+                            label="residual above the noise" if j == 0 else None)
+        ax2.axvline(d.heldout_start, color="k", lw=0.6, ls=":")
+        ax2.set_ylabel("residual [m]")
+        ax2.legend(loc="upper right", fontsize=7)
+        ax2.grid(alpha=0.3)
+        if i == k - 1:
+            ax2.set_xlabel("time [s]  (dotted: held-out part begins)")
+        if load_test:
+            ax3 = fig.add_subplot(gs[2 * i:2 * i + 2, 1])
+            ax3.plot(tr.measured, tr.input, ".", ms=1.5, color="0.55", label="measured")
+            ax3.plot(f.predicted, tr.input, "-", lw=0.9, color=f"C{i}", label=f.model)
+            ax3.set_xlabel("elongation [m]")
+            ax3.set_ylabel("load [N]")
+            ax3.legend(loc="lower right", fontsize=7)
+            ax3.grid(alpha=0.3)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def plot_gap(d, path: Path) -> None:
+    """RMS error over the noise, step by step, with every candidate tried in each round."""
+    plt = pyplot()
+    sigma = d.noise.sigma
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    xs = list(range(len(d.fits)))
+    ax.plot(xs, [f.rms / sigma for f in d.fits], "o-", color="C0", lw=2, label="model (whole record)")
+    held = [s.heldout_before / sigma for s in d.steps]
+    if len(held) == len(xs):
+        ax.plot(xs, held, "s--", color="C1", label="held-out part (fit on the first part)")
+    for i, st in enumerate(d.steps):
+        for c in st.candidates:
+            y = c.rms / sigma
+            if not np.isfinite(y):
+                continue
+            ax.plot(i + 0.5, y, "x" if not c.accepted else "o", color="C2" if c.accepted else "C3", ms=7)
+            ax.annotate(c.effect.replace("_", " "), (i + 0.5, y), fontsize=7, xytext=(4, 0),
+                        textcoords="offset points")
+    ax.axhline(1.0, color="k", lw=0.8, label="noise level")
+    ax.set_yscale("log")
+    labels = [f.model for f in d.fits]
+    ax.set_xticks(xs, labels, fontsize=8, rotation=15)
+    ax.set_ylabel("RMS error / noise σ")
+    ax.set_title("the gap, step by step (crosses: candidates that did not earn their parameters)", fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def _f(x, spec=".3g"):
+    return "–" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, spec)
+
+
+def discovery_page(d, doc: dict, images: dict) -> str:
+    esc = html.escape
+    sigma = d.noise.sigma
+    tr = d.trace
+    rows = []
+    for i, s in enumerate(doc["steps"], 1):
+        where = "; ".join(f"{w['start_s']:.4g}–{w['end_s']:.4g} s ({esc(', '.join(w['regimes']) or '–')})"
+                          for w in sorted(s["where"], key=lambda w: -w["share_of_excess"])[:4])
+        rows.append(f"<tr><td>{i}</td><td class=l><b>{esc(s['effect'])}</b></td><td class=l><code>"
+                    f"{esc(s['model_after'])}</code></td><td>{s['rmse_before_over_noise']:.2f}</td>"
+                    f"<td>{s['rmse_after_over_noise']:.2f}</td><td class=l>{where or '–'}</td>"
+                    f"<td class=l>{esc(s['evidence'])}</td></tr>")
+    rounds = []
+    for i, r in enumerate(doc["rounds"]):
+        cands = "".join(
+            f"<tr class={'good' if c['accepted'] else 'bad'}><td class=l>{esc(c['effect'])}</td>"
+            f"<td class=l><code>{esc(c['model'])}</code></td><td>{c['added_parameters']}</td>"
+            f"<td>{_f(c['rmse_over_noise'], '.2f')}</td><td>{_f(c['heldout_rmse_over_noise'], '.2f')}</td>"
+            f"<td>{_f(c['bic_change'], '.0f')}</td><td>{c['signature']:.2f}</td>"
+            f"<td class=l>{esc(c['signature_text'])}</td><td class=l>{esc(c['verdict'])}</td></tr>"
+            for c in r["candidates"])
+        reg = "".join(f"<tr><td class=l>{esc(k)}</td><td>{100 * v['samples']:.0f} %</td>"
+                      f"<td>{v['rms_over_noise']:.2f}</td><td>{100 * v['share_of_excess']:.0f} %</td></tr>"
+                      for k, v in r["regimes"].items())
+        wins = ", ".join(f"{w['start_s']:.4g}–{w['end_s']:.4g} s" for w in r["windows"][:12]) or "none"
+        more = f" (and {len(r['windows']) - 12} more)" if len(r["windows"]) > 12 else ""
+        head = f"Round {i + 1}: <code>{esc(r['model'])}</code>, RMS error {r['rmse_over_noise']:.2f} × noise " \
+               f"(held-out {r['heldout_rmse'] / sigma:.2f} × noise)"
+        body = f"<p>Windows where the residual stands above the noise: {esc(wins)}{more}.</p>" \
+               f"<table><tr><th>regime</th><th>samples</th><th>RMS / σ</th><th>share of the excess</th></tr>{reg}</table>"
+        if cands:
+            body += ("<table><tr><th>candidate</th><th>model</th><th>added parameters</th><th>RMS / σ</th>"
+                     "<th>held-out RMS / σ</th><th>ΔBIC</th><th>signature</th><th>what the residual shows</th>"
+                     f"<th>verdict</th></tr>{cands}</table>")
+        verdict = f"<p>Added: <b>{esc(r['added'])}</b>.</p>" if r["added"] else f"<p>Stopped: {esc(doc['stop_reason'])}</p>"
+        rounds.append(f"<h3>{head}</h3>{body}{verdict}")
+    added = ", ".join(doc["added_effects"]) or "nothing"
+    return f"""<!DOCTYPE html>
+<html><head><meta charset="utf-8"><title>Discovery: {esc(tr.name)}</title><style>{PAGE_STYLE}
+td.l {{ max-width: 30em; }}</style></head>
+<body><h1>Discovery on {esc(tr.name)} ({esc(tr.experiment)})</h1>
+<p>Start model <code>{esc(doc['start_model'])}</code>, RMS error {doc['rmse_initial']:.3g} m
+({doc['rmse_initial_over_noise']:.2f} × the noise). Noise estimated from the data: {sigma:.3g} m
+({esc(doc['noise_method'])}). <b>Discovered: {esc(added)}</b>; final model <code>{esc(doc['final_model'])}</code>,
+RMS error {doc['rmse_final']:.3g} m = {doc['rmse_final_over_noise']:.2f} × the noise. {doc['seconds']:.1f} s.</p>
+<p>Numbers: <a href="discovery.json">discovery.json</a> (also a <code>--params</code> file of the final model:
+<code>tether simulate OTHER.csv --params discovery.json</code>).</p>
+<h2>The steps</h2>
+<table><tr><th>#</th><th>effect</th><th>model after</th><th>RMS / σ before</th><th>after</th>
+<th>where the disagreement was</th><th>evidence</th></tr>{''.join(rows) or '<tr><td colspan=7>no step: nothing is missing</td></tr>'}</table>
+<h2>The gap, step by step</h2><img src="{esc(images['gap'])}" alt="gap">
+<h2>The record against each model</h2>
+<p>Each model in turn: the record and the model's prediction; below, the residual with the noise band
+and the windows where it stands above the noise (orange). The dotted line is where the held-out part
+begins: the candidate fits used for the held-out test saw only the record before it.</p>
+<img src="{esc(images['models'])}" alt="models">
+<h2>Every round</h2>{''.join(rounds)}
+<p>Stopped: {esc(doc['stop_reason'])}</p>
+</body></html>
+"""
+
+
+def write_discovery_report(report: Path, d, doc: dict) -> None:
+    report = Path(report)
+    images = {"models": "models.png", "gap": "gap.png"}
+    plot_models(d, report / images["models"])
+    plot_gap(d, report / images["gap"])
+    write_json_atomic(report / "discovery.json", doc)
+    write_text_atomic(report / "index.html", discovery_page(d, doc, images))
