@@ -84,12 +84,19 @@ Which experiment reveals which effect (the ``hidden.revealed`` list)
 --------------------------------------------------------------------
     effect                free_vibration  forced  load_unload            creep
     nonlinear_stiffness   yes             yes     yes                    yes (0/100/5 N levels)
-    hysteresis            yes             yes     yes                    yes (residual after unload)
+    hysteresis            yes             yes     yes                    present, not counted (+)
     nonlinear_damping     yes             yes     no (quasi-static)      no
     creep                 refused         refused present, not counted   yes
     slack                 yes*            yes*    no (load >= 0)         no
 
 ``*`` only if the record actually went slack (always, for the generated slack traces).
+``+`` a creep test holds each load and changes it within one sample interval, so no sample lies on
+a loading or unloading path, only on the held levels. A Masing-type hysteresis (Iwan, Kawabata)
+then returns to the same strain at every revisit of a level (a minor loop closes at its turning
+point; a reload to the old maximum meets the virgin curve), so elongation is a single-valued
+function of the held load plus creep: exactly what a nonlinear elastic law with a value at each
+level gives. Such a record shows the hysteresis only as a level-dependent stiffness, it cannot
+reveal it as hysteresis; the suite does not hide hysteresis in creep tests.
 ``hidden.effects`` = what the generating model contains; ``hidden.revealed`` = the subset the
 record can reveal, i.e. what a discovery run should name.  A name in effects but not in revealed
 is neither required nor wrong; a name outside effects is a false positive.  ``creep`` is refused
@@ -120,9 +127,9 @@ Noise: white Gaussian on the measured column only; sigma from {1e-5, 1e-4, 3e-4,
 Suite (``suite(n=48, seed=0)``)
 ===============================
 Per experiment: a null, every revealable effect alone, every pair, a second null
-(free_vibration 12, forced 12, load_unload 5, creep 8 = 37 base traces, interleaved across
+(free_vibration 12, forced 12, load_unload 5, creep 5 = 34 base traces, interleaved across
 experiments), then the list is repeated with new seeds and the other law variants until ``n``
-(for 48: one more null per experiment, then nlstiff x3, creep, hyst x3).  Trace ``i`` has seed
+(for 48: one more null per experiment, nlstiff x3, creep, hyst x3, nlstiff, nldamp x2).  Trace ``i`` has seed
 ``1000 seed + i + 1``; law variants alternate per (experiment, effect); noise levels and
 sampling rates cycle per
 experiment (the subtle single/paired nonlinear stiffness/damping traces get the three lower
@@ -161,7 +168,7 @@ REVEALABLE = {
     "free_vibration": ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "slack"),
     "forced": ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "slack"),
     "load_unload": ("nonlinear_stiffness", "hysteresis"),
-    "creep": ("creep", "hysteresis", "nonlinear_stiffness"),
+    "creep": ("creep", "nonlinear_stiffness"),
 }
 MEASURED = {"free_vibration": "displacement", "forced": "displacement",
             "load_unload": "elongation", "creep": "elongation"}
@@ -936,7 +943,7 @@ def _gen_spec(spec):
 
 
 def suite(n=48, seed=0):
-    """At least every revealable effect alone and in pairs per experiment, plus nulls (40 base
+    """At least every revealable effect alone and in pairs per experiment, plus nulls (34 base
     traces, then repeats with new seeds and the other law variants), with cycling noise levels and
     rates. Returns [(name, Trace)]."""
     return [_gen_spec(s) for s in suite_specs(n, seed)]
