@@ -816,6 +816,40 @@ class Discovery:
         return [s.effect for s in self.steps if s.effect and s.effect in self.final.effects]
 
 
+def sampled_branches(trace: Trace, min_samples: int = 3) -> bool:
+    """Load tests: does the record hold samples on a loading path and on an unloading path over a
+    common range of load (between 5 % and 95 % of the largest)? Only then can it tell hysteresis
+    from a nonlinear elastic law. A creep test that changes its weights within one sample
+    interval samples only the held levels; a Masing-type hysteresis returns to the same strain at
+    every revisit of a level, so there it is a single-valued load-strain relation, exactly what
+    nonlinear stiffness gives."""
+    T = np.asarray(trace.input, float)
+    if len(T) < 3:
+        return False
+    top = float(np.max(np.abs(T)))
+    if not top > 0:
+        return False
+    d_in, d_out = np.diff(T)[:-1], np.diff(T)[1:]          # the steps into and out of each inner sample
+    inner = T[1:-1]
+    mid = (inner > 0.05 * top) & (inner < 0.95 * top)
+    tol = 1e-9 * top
+    up = inner[mid & (d_in > tol) & (d_out > tol)]
+    down = inner[mid & (d_in < -tol) & (d_out < -tol)]
+    if len(up) < min_samples or len(down) < min_samples:
+        return False
+    lo, hi = max(up.min(), down.min()), min(up.max(), down.max())
+    return int(np.sum((up >= lo) & (up <= hi))) >= min_samples and int(np.sum((down >= lo) & (down <= hi))) >= min_samples
+
+
+def candidates(trace: Trace) -> tuple[str, ...]:
+    """The effects a record of this experiment can reveal (CANDIDATES), less hysteresis in a
+    load test that samples no loading and unloading paths (sampled_branches)."""
+    c = CANDIDATES[trace.experiment]
+    if trace.rig != "payload" and not sampled_branches(trace):
+        c = tuple(e for e in c if e != "hysteresis")
+    return c
+
+
 def _model_for(spec: ModelSpec, effect: str) -> ModelSpec | None:
     from dataclasses import replace
 
@@ -969,7 +1003,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             stop = f"stopped after {max_steps} added effects"
             break
         sig = signatures(trace, cur, sigma, masks)
-        todo = [(e, _model_for(cur.spec, e)) for e in CANDIDATES[trace.experiment] if e not in cur.effects]
+        todo = [(e, _model_for(cur.spec, e)) for e in candidates(trace) if e not in cur.effects]
         todo = [(e, m) for e, m in todo if m is not None]
         if not todo:
             stop = "every effect the experiment can reveal is in the model"
