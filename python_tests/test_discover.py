@@ -1,0 +1,193 @@
+"""tether discover (issue 5), the CI subset.
+
+The traces come from python_tests/hidden_effects.py, a generator with its own laws and integrator
+(power-law stiffness, Iwan hysteresis, ... not the FMU's equations), so discovery is tested against
+model-form mismatch; the truth is the generator's ``hidden.revealed`` list, which discovery does
+not read. The full acceptance run (48 traces, confusion table, the Bouc-Wen benchmark) is
+bench/discovery_eval.py: it takes tens of minutes, too long for CI.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hidden_effects as he
+from tether import discover as D
+from tether.traces import read_trace
+
+REPO = Path(__file__).resolve().parents[1]
+BUNDLED = REPO / "reference_results" / "discovery" / "freevib_hidden"
+FIELDS = ("added_effects", "rmse_initial", "rmse_final", "noise_estimate", "steps", "final_params")
+STEP_FIELDS = ("effect", "where", "evidence", "rmse_before", "rmse_after")
+
+
+def _write(tmp_path, stem, experiment, effects, seed, **kw):
+    tr = he.generate(experiment, effects, seed, **kw)
+    tr.write(tmp_path, stem)
+    return tmp_path / stem, tr
+
+
+def _discover_cli(run_cli, stem, tmp_path, *extra):
+    out = tmp_path / f"{Path(stem).name}.discovery.json"
+    status, stdout, stderr = run_cli("discover", stem, "--json", out, *extra)
+    assert status == 0, stderr
+    return json.loads(out.read_text()), stdout, stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# the noise estimate, against the sigma the noise was drawn with
+@pytest.mark.parametrize("sigma", [1e-5, 1e-4, 1e-3])
+@pytest.mark.parametrize("jitter", [0.0, 0.3])
+def test_noise_estimate_recovers_the_drawn_sigma(sigma, jitter):
+    rng = np.random.default_rng(int(1e6 * sigma) + int(10 * jitter))
+    n = 4000
+    t = np.arange(n) * 0.005
+    t[1:-1] += jitter * 0.005 * rng.uniform(-0.5, 0.5, n - 2)
+    # a smooth decaying oscillation of 0.1 m, 50 samples per period
+    smooth = 0.1 * np.exp(-0.1 * t) * np.cos(2 * np.pi * 4 * t) + 0.02 * np.sin(2 * np.pi * 0.7 * t)
+    y = smooth + rng.normal(0.0, sigma, n)
+
+    class _T:
+        time = t
+        measured = y
+        periodic_samples = None
+
+    est = D.estimate_noise(_T())
+    assert est.sigma == pytest.approx(sigma, rel=0.08)
+
+
+# ---------------------------------------------------------------------------------------------
+# the verdicts: what earns its parameters
+def test_verdict_accepts_a_gap_closed_to_the_noise_and_refuses_a_bic_rise():
+    s = 1.0
+    ok, why = D.full_data_verdict(s, rms_before=5.0, rms_after=1.02, bic_change=-500.0)
+    assert ok, why
+    ok, why = D.full_data_verdict(s, rms_before=5.0, rms_after=1.02, bic_change=+3.0)
+    assert not ok and "BIC" in why
+    # a gap that barely moves does not earn anything, however low the BIC
+    ok, why = D.full_data_verdict(s, rms_before=5.0, rms_after=4.5, bic_change=-50.0)
+    assert not ok and "gap" in why
+    # within the noise before: nothing to gain
+    ok, _ = D.full_data_verdict(s, rms_before=1.0, rms_after=0.99, bic_change=-1.0)
+    assert not ok
+    assert D._gap(math.sqrt(2.0), 1.0) == pytest.approx(1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# null traces: the baseline is the truth, nothing may be named
+@pytest.mark.parametrize("experiment,seed,kw", [
+    ("free_vibration", 101, dict(noise=1e-4, rate=200.0)),
+    ("forced", 102, dict(noise=1e-5, rate=200.0)),
+    ("load_unload", 103, dict(noise=5e-5, rate=10.0, jitter=0.3)),
+    ("creep", 104, dict(noise=2e-5, rate=0.2)),
+])
+def test_null_traces_name_nothing(tmp_path, run_cli, experiment, seed, kw):
+    stem, tr = _write(tmp_path, f"null_{experiment}", experiment, set(), seed, **kw)
+    doc, out, _ = _discover_cli(run_cli, stem, tmp_path)
+    assert doc["added_effects"] == [] and doc["steps"] == []
+    assert doc["final_params"]["model"] == "linear"
+    sigma = tr.meta["hidden"]["noise_sigma_m"]
+    assert doc["noise_estimate"] == pytest.approx(sigma, rel=0.15)
+    assert doc["rmse_final"] == doc["rmse_initial"] <= 1.2 * sigma
+    assert "no effect is missing" in out
+
+
+# ---------------------------------------------------------------------------------------------
+# effects hidden one at a time, in each kind of experiment
+@pytest.mark.parametrize("experiment,effects,seed,kw", [
+    ("load_unload", {"nonlinear_stiffness"}, 7, dict(noise=5e-5, rate=5.0, stiffness_law="logcosh")),
+    ("forced", {"slack"}, 18, dict(noise=1e-4, rate=100.0, duration_s=10.0)),
+    # logarithmic creep: the model's three Kelvin cells follow it to the noise. A Findley power law
+    # (infinitely fast right after a load step) leaves 1.5-1.9 x noise at the first samples after
+    # each step: a limit of the model form, measured in bench/discovery_eval.py, not hidden here
+    ("creep", {"creep"}, 9, dict(noise=5e-5, rate=0.05, creep_kernel="log")),
+])
+def test_a_hidden_effect_is_named_and_the_gap_closes(tmp_path, run_cli, experiment, effects, seed, kw):
+    stem, tr = _write(tmp_path, f"{experiment}_hidden", experiment, effects, seed, **kw)
+    doc, _, _ = _discover_cli(run_cli, stem, tmp_path)
+    sigma = tr.meta["hidden"]["noise_sigma_m"]
+    assert set(doc["added_effects"]) == set(tr.revealed), doc["added_effects"]
+    assert doc["rmse_initial"] > 3 * sigma            # the linear baseline misses it plainly ...
+    assert doc["rmse_final"] <= 1.5 * sigma           # ... the discovered model is at the noise
+
+
+def test_bundled_trace_two_effects_json_report_and_rerun(tmp_path, run_cli):
+    """The demo's record (power-law stiffness and slack hidden): both named, in steps that each
+    shrink the gap; the JSON has the contract's fields; the report shows the story; the JSON is a
+    --params file that predicts another record of the same tether at its noise."""
+    report = tmp_path / "report"
+    doc, out, err = _discover_cli(run_cli, BUNDLED, tmp_path, "--report", report)
+    truth = json.loads(BUNDLED.with_suffix(".json").read_text())["hidden"]
+    sigma = truth["noise_sigma_m"]
+    assert set(doc["added_effects"]) == set(truth["revealed"]) == {"nonlinear_stiffness", "slack"}
+    for f in FIELDS:
+        assert f in doc, f
+    assert doc["noise_estimate"] == pytest.approx(sigma, rel=0.15)
+    assert doc["rmse_final"] <= 1.5 * sigma < 10 * sigma < doc["rmse_initial"]
+    assert [s["effect"] for s in doc["steps"]] == doc["added_effects"]
+    prev = doc["rmse_initial"]
+    t_end = float(read_trace(BUNDLED).time[-1])
+    for s in doc["steps"]:
+        for f in STEP_FIELDS:
+            assert f in s, f
+        assert s["rmse_before"] == pytest.approx(prev) and s["rmse_after"] < 0.5 * s["rmse_before"]
+        prev = s["rmse_after"]
+        assert s["where"], "a step names the windows of disagreement"
+        for w in s["where"]:
+            assert 0.0 <= w["start_s"] < w["end_s"] <= t_end + 1e-9
+        assert s["evidence"]
+    assert doc["rmse_final"] == pytest.approx(prev)
+    # progress on stderr, the account on stdout
+    assert "added nonlinear_stiffness" in err and "discovered: nonlinear_stiffness, slack" in out
+    page = (report / "index.html").read_text()
+    for img in ("models.png", "gap.png"):
+        assert img in page and (report / img).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # the same tether released from another height, simulated with the discovered model
+    other, tr2 = _write(tmp_path, "other", "free_vibration", {"nonlinear_stiffness", "slack"}, 7, noise=1e-4,
+                        rate=200.0, duration_s=10.0, stiffness_law="power", x0_m=-0.11)
+    assert tr2.meta["hidden"]["params"]["EA_N"] == truth["params"]["EA_N"]
+    sim = tmp_path / "sim.csv"
+    status, _, err = run_cli("simulate", other, "--params", tmp_path / "freevib_hidden.discovery.json", "--out", sim)
+    assert status == 0, err
+    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
+    rms = float(np.sqrt(np.mean((y - tr2.measured) ** 2)))
+    # ... against the linear baseline fitted to the same first record
+    lin = tmp_path / "linear.json"
+    status, _, err = run_cli("fit", BUNDLED, "--model", "linear", "--out", lin)
+    assert status == 0, err
+    status, _, err = run_cli("simulate", other, "--params", lin, "--out", sim)
+    assert status == 0, err
+    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
+    rms_lin = float(np.sqrt(np.mean((y - tr2.measured) ** 2)))
+    # the cubic stands in for the generator's power law: outside the amplitudes it was fitted on it
+    # is not at the noise (2.6 sigma), but far nearer the truth than the baseline (> 50 sigma)
+    assert rms < 3.0 * sigma and rms < 0.1 * rms_lin, (rms, rms_lin)
+
+
+# ---------------------------------------------------------------------------------------------
+# bad input: a clear error, exit 2, nothing written
+def test_missing_trace_and_bad_outputs_exit_2_and_write_nothing(tmp_path, run_cli):
+    out = tmp_path / "d.json"
+    status, _, err = run_cli("discover", tmp_path / "nope", "--json", out)
+    assert status == 2 and "nope" in err and not out.exists()
+    stem, _ = _write(tmp_path, "t", "free_vibration", set(), 1, noise=1e-4, rate=100.0)
+    status, _, err = run_cli("discover", stem, "--json", tmp_path)
+    assert status == 2 and "--json" in err
+    status, _, err = run_cli("discover", stem, "--json", out, "--start", "linear+wobble")
+    assert status == 2 and "wobble" in err and not out.exists()
+
+
+def test_noise_free_record_is_refused_with_a_reason(tmp_path, run_cli, write_trace):
+    # a payload at rest at its balance, recorded exactly: no noise, so no scale to judge a gap by
+    t = np.arange(0.0, 5.0, 0.01)
+    stem = write_trace("still", {"format": "tether-trace/1", "experiment": "free_vibration",
+                                 "tether": {"length_m": 10.0}, "payload_mass_kg": 3.0},
+                       {"time": t, "displacement": np.zeros_like(t)})
+    out = tmp_path / "d.json"
+    status, _, err = run_cli("discover", stem, "--json", out)
+    assert status == 1 and "no noise" in err and "still" in err and not out.exists()
