@@ -18,7 +18,8 @@ workflow repeats
 until the model reproduces the record to within the noise or no candidate earns its parameters.
 
 Effects map to model terms as in :mod:`tether.models`: ``nonlinear_stiffness`` -> the cubic law,
-``hysteresis`` -> a Bouc-Wen force, ``nonlinear_damping`` -> c(x) = c0 + c1|x| + c2 x^2,
+``hysteresis`` -> a Bouc-Wen force (in load tests also the Kawabata branches, the better of the two),
+``nonlinear_damping`` -> c(x) = c0 + c1|x| + c2 x^2,
 ``creep`` -> Kelvin cells and slip, ``slack`` -> no compression (no parameter of its own).
 """
 
@@ -850,6 +851,19 @@ def candidates(trace: Trace) -> tuple[str, ...]:
     return c
 
 
+def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
+    """The models that add ``effect`` to ``spec``: one law per effect, but hysteresis in a load
+    test has two, the Bouc-Wen force and the paper's Kawabata branches (which replace the elastic
+    law: their loading curve is a power law)."""
+    from dataclasses import replace
+
+    new = _model_for(spec, effect)
+    out = [new] if new is not None else []
+    if effect == "hysteresis" and spec.hysteresis == "none" and trace.rig != "payload":
+        out.append(replace(spec, hysteresis="kawabata"))
+    return out
+
+
 def _model_for(spec: ModelSpec, effect: str) -> ModelSpec | None:
     from dataclasses import replace
 
@@ -1003,8 +1017,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             stop = f"stopped after {max_steps} added effects"
             break
         sig = signatures(trace, cur, sigma, masks)
-        todo = [(e, _model_for(cur.spec, e)) for e in candidates(trace) if e not in cur.effects]
-        todo = [(e, m) for e, m in todo if m is not None]
+        todo = [(e, m) for e in candidates(trace) if e not in cur.effects for m in _models_for(cur.spec, e, trace)]
         if not todo:
             stop = "every effect the experiment can reveal is in the model"
             break
@@ -1024,6 +1037,14 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             say(f"  + {eff}: RMS error {fm.rms / sigma:.2f} x noise with {dk} more parameter{'s' if dk != 1 else ''} "
                 f"({fm.seconds:.1f} s)")
             results.append(cr)
+        # an effect with two laws (hysteresis in a load test: Bouc-Wen or Kawabata) competes with
+        # the better of them
+        best_of: dict[str, CandidateResult] = {}
+        for c in results:
+            b = best_of.get(c.effect)
+            if b is None or (c.fit.ok and (not b.fit.ok or c.bic_change < b.bic_change)):
+                best_of[c.effect] = c
+        results = list(best_of.values())
         # the held-out test for the best few that pass on the whole record
         passing = sorted([c for c in results if c.accepted], key=lambda c: c.bic_change)
         for c in passing[:heldout_candidates]:
