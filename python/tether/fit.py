@@ -733,10 +733,20 @@ def _check_names(names: Iterable[str], spec: ModelSpec, what: str) -> list[str]:
     return out
 
 
+#: physical ranges a fit keeps to beyond the FMU's own limits: a creep cell of compliance 1e40 1/N
+#: and time constant 1e160 s is a limit of the law, not a tether (fits of long creep records
+#: wander there when two cells trade off)
+FIT_RANGES = {"creep_tau1": (1.0, 1e7), "creep_tau2": (1.0, 1e7), "creep_tau3": (1.0, 1e7),
+              "creep_J1": (0.0, 1e-3), "creep_J2": (0.0, 1e-3), "creep_J3": (0.0, 1e-3),
+              "slip_regen_tau": (1.0, 1e7)}
+
+
 def _bounds_and_start(name: str, start: float, fmu_bounds: dict, scales: dict) -> tuple[float, float, float, str]:
     lo, hi = fmu_bounds.get(name, (None, None))
     lo = -math.inf if lo is None else float(lo)
     hi = math.inf if hi is None else float(hi)
+    if name in FIT_RANGES:
+        lo, hi = max(lo, FIT_RANGES[name][0]), min(hi, FIT_RANGES[name][1])
     if name in _LOG:
         lo = max(lo, 0.0)
         if not start > 0:
