@@ -429,6 +429,10 @@ def candidate_starts(base: ModelFit, new: ModelSpec, sc: _Scales) -> list[dict |
     starts: list[dict | None] = []
     if new.hysteresis == "kawabata" and old.hysteresis != "kawabata":
         starts.append(None)
+    elif old.hysteresis == "kawabata" and new.hysteresis == "boucwen":
+        w = {"a1": sc.ea, "a2": 0.0, "a3": 0.0}
+        w.update(_boucwen_start(sc, 0.1, 0.3))
+        starts += [None, w]
     elif new.stiffness == "cubic" and old.stiffness != "cubic":
         ea = warm.get("EA", sc.ea)
         w = dict(warm)
@@ -861,6 +865,10 @@ def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
     out = [new] if new is not None else []
     if effect == "hysteresis" and spec.hysteresis == "none" and trace.rig != "payload":
         out.append(replace(spec, hysteresis="kawabata"))
+    if effect == "nonlinear_stiffness" and spec.hysteresis == "kawabata":
+        # Kawabata's power-law branches are one shape of nonlinear stiffness; a cubic law under a
+        # Bouc-Wen force is another, and the one that carries the effect by name
+        out.append(replace(spec, stiffness="cubic", hysteresis="boucwen"))
     return out
 
 
