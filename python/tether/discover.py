@@ -922,24 +922,50 @@ def _required_fraction(base: float, gap_over_noise: float) -> float:
     return base + 0.3 * x
 
 
-def full_data_verdict(sigma: float, rms_before: float, rms_after: float, bic_change: float) -> tuple[bool, str]:
-    """Whole record: a lower BIC, and the gap above the noise at most GAP_FRACTION of what it was."""
+#: an effect without parameters of its own (slack) needs a smaller shrink of the gap, at this
+#: fraction, and a BIC lower by at least ZERO_PARAMETER_BIC: it cannot bend to the noise, it changes
+#: the model only where the record shows the physics (the tether would be in compression)
+ZERO_PARAMETER_FRACTION = 0.9
+ZERO_PARAMETER_BIC = -10.0
+
+
+def full_data_verdict(sigma: float, rms_before: float, rms_after: float, bic_change: float,
+                      added_parameters: int = 1) -> tuple[bool, str]:
+    """Whole record: a lower BIC, and the gap above the noise at most GAP_FRACTION of what it was
+    (ZERO_PARAMETER_FRACTION for an effect that adds no parameter)."""
     g0, g1 = _gap(rms_before, sigma), _gap(rms_after, sigma)
     if not g0 > 0 or not rms_after < rms_before:
         return False, f"nothing to gain: RMS error {rms_before / sigma:.2f} -> {rms_after / sigma:.2f} x noise"
     why = []
-    if not bic_change < 0:
-        why.append(f"BIC rises by {bic_change:.1f}")
-    if not g1 <= _required_fraction(GAP_FRACTION, g0 / sigma) * g0:
+    zero = added_parameters <= 0
+    if not bic_change < (ZERO_PARAMETER_BIC if zero else 0.0):
+        why.append(f"BIC changes by {bic_change:+.1f}")
+    frac = ZERO_PARAMETER_FRACTION if zero else _required_fraction(GAP_FRACTION, g0 / sigma)
+    if not g1 <= frac * g0:
         why.append(f"the gap above the noise shrinks only from {g0 / sigma:.2f} to {g1 / sigma:.2f} sigma")
     if why:
         return False, "; ".join(why)
     return True, f"gap {g0 / sigma:.2f} -> {g1 / sigma:.2f} sigma, BIC {bic_change:+.0f}"
 
 
-def heldout_verdict(sigma: float, held_before: float, held_after: float) -> tuple[bool, str]:
+#: a whole-record gap at least this many sigma, at least halved by the candidate: the held-out test
+#: is not asked (see heldout_verdict)
+GROSS_GAP = 20.0
+
+
+def heldout_verdict(sigma: float, held_before: float, held_after: float, rms_before: float | None = None,
+                    rms_after: float | None = None) -> tuple[bool, str]:
     """The last part of the record, predicted by fits to the first part: the gap above the noise at
-    most HELDOUT_GAP_FRACTION of what it was."""
+    most HELDOUT_GAP_FRACTION of what it was. Not asked when the current model misses the whole
+    record grossly (a gap of GROSS_GAP sigma or more) and the candidate at least halves it: then
+    the fit to the first part is bent by everything the model still lacks, and its prediction of
+    a decayed or quiet last part says little (a free vibration's last 40 % may sit at a few sigma
+    while its first part is at a hundred)."""
+    if rms_before is not None and rms_after is not None and math.isfinite(rms_after):
+        g0, g1 = _gap(rms_before, sigma), _gap(rms_after, sigma)
+        if g0 >= GROSS_GAP * sigma and g1 <= 0.5 * g0:
+            return True, (f"held-out test not asked: the gap of {g0 / sigma:.0f} sigma is gross and the candidate "
+                          f"more than halves it")
     h0, h1 = _gap(held_before, sigma), _gap(held_after, sigma)
     if not h1 <= min(_required_fraction(HELDOUT_GAP_FRACTION, h0 / sigma), 0.9) * h0 or not math.isfinite(held_after):
         return False, f"on the held-out part the gap goes from {h0 / sigma:.2f} to {h1 / sigma:.2f} sigma"
@@ -1039,7 +1065,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                                  signature=float(sig.get(eff, {}).get("score", 0.0)),
                                  signature_text=sig.get(eff, {}).get("text", ""), fit=fm)
             if fm.ok:
-                cr.accepted, cr.verdict = full_data_verdict(sigma, cur.rms, fm.rms, bic)
+                cr.accepted, cr.verdict = full_data_verdict(sigma, cur.rms, fm.rms, bic, dk)
             else:
                 cr.accepted, cr.verdict = False, f"the fit failed: {fm.message}"
             say(f"  + {eff}: RMS error {fm.rms / sigma:.2f} x noise with {dk} more parameter{'s' if dk != 1 else ''} "
@@ -1055,7 +1081,11 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         results = list(best_of.values())
         # the held-out test for the best few that pass on the whole record
         passing = sorted([c for c in results if c.accepted], key=lambda c: c.bic_change)
-        for c in passing[:heldout_candidates]:
+        tested = 0
+        for c in passing:
+            if tested >= heldout_candidates and any(x.accepted for x in passing[:tested]):
+                break
+            tested += 1
             # the first part of the record, fitted from the whole record's optimum (as the current
             # model's part fit is: both sides start alike, and each converges to its own optimum
             # of the first part)
@@ -1063,11 +1093,11 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             pf = fit(part, new, c.fit.effects, [c.fit.params], sc_part)
             c.part_fit = pf
             c.heldout_rms = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
-            ok, why = heldout_verdict(sigma, cur_held, c.heldout_rms)
+            ok, why = heldout_verdict(sigma, cur_held, c.heldout_rms, cur.rms, c.rms)
             c.accepted = ok
             c.verdict = f"{c.verdict}; {why}"
             say(f"  {c.effect}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was {cur_held / sigma:.2f})")
-        for c in passing[heldout_candidates:]:
+        for c in passing[tested:]:
             c.accepted = False
             c.verdict += "; not tested on the held-out part (a better candidate was)"
         results.sort(key=lambda c: (not c.accepted, c.bic_change))
@@ -1097,7 +1127,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             if not rf.ok:
                 continue
             bic = _bic(cur.rms, cur.n_free, n) - _bic(rf.rms, rf.n_free, n)
-            keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic)
+            keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
             if keep:
                 continue
             say(f"removed {e}: without it the RMS error is {rf.rms / sigma:.2f} x noise ({why})")
