@@ -33,7 +33,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .models import EXPERIMENT_RIG, ModelSpec, parse_model
+from .models import ModelSpec, parse_model
 from .traces import Trace
 
 #: candidate effects per experiment (what the experiment can reveal), in the order they are tried
@@ -188,29 +188,20 @@ def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
     gamma, and the creep compliances and slip (creep_J1..3, slip_capacity0, slip_rate). Unlike
     tether.fit's defaults, a creep test frees the cubic too: two load levels leave one direction of
     it undetermined, but discovery asks only whether the law lowers the error."""
+    from .fit import CREEP_FREE, law_free_parameters
+
     spec = spec.for_experiment(experiment)
-    payload = spec.rig == "payload"
-    names: list[str] = []
-    if spec.hysteresis == "kawabata":
-        names += ["kaw_LT", "kaw_RT", "kaw_F_ref"] + ([] if payload else ["kaw_residual"])
-    elif spec.stiffness == "cubic":
-        names += ["a1", "a2", "a3"]
-    else:
-        names += ["EA"]
-    if payload:
-        names += ["c0"] + (["c1", "c2"] if spec.damping == "displacement" else [])
-    if spec.hysteresis == "boucwen":
-        names += ["bw_A", "bw_beta", "bw_gamma"]
+    names = law_free_parameters(spec)
     if spec.creep:
-        names += list(CREEP_FREE_LONG if experiment == "creep" else CREEP_FREE)
+        # a load-unload test (minutes) sees the fast cells and the slip rate; a creep test (hours
+        # of holds) the time constants and the slip's shape as well
+        names += list(CREEP_FREE + (CREEP_SHAPE if experiment == "creep" else ()))
     return names
 
 
-#: creep terms freed in a load-unload test (minutes long: the fast cells and the slip rate) ...
-CREEP_FREE = ("creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate")
-#: ... and in a creep test (hours of holds: the time constants and the slip's shape as well)
-CREEP_FREE_LONG = CREEP_FREE + ("creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau",
-                                "slip_limit", "slip_load_half")
+#: the creep terms discovery frees in a creep test beyond tether.fit's CREEP_FREE
+CREEP_SHAPE = ("creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau", "slip_limit",
+               "slip_load_half")
 
 
 def _floor(name: str, sc: _Scales) -> float:

@@ -145,7 +145,8 @@ _LOG = {"EA", "a1", "c0", "bw_A", "kaw_F_ref", "kaw_eps_ref", "creep_J1", "creep
         "slip_load_exponent", "slip_regen_tau", "slip_limit"}
 #: the elastic law and viscous damping: the first stage
 _BASE = {"EA", "a1", "a2", "a3", "c0", "kaw_LT", "kaw_RT", "kaw_F_ref", "kaw_residual", "kaw_eps_ref"}
-_CREEP_FREE = ["creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate"]
+#: the creep terms a fit frees by default: the Kelvin compliances and the slip
+CREEP_FREE = ("creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate")
 
 
 def _spec(model) -> ModelSpec:
@@ -167,10 +168,22 @@ def default_free_parameters(spec, experiment: str) -> list[str]:
     Kawabata law (held at its values: fit it on a load test and pass it with ``fixed``).
     """
     spec = _spec(spec).for_experiment(experiment)
+    # two load levels cannot determine a three-coefficient law: fit it on a load test
+    many = experiment == "creep" and (spec.stiffness == "cubic" or spec.hysteresis == "kawabata")
+    names = law_free_parameters(spec, elastic=not many)
+    if spec.creep and experiment == "creep":
+        names += CREEP_FREE
+    return names
+
+
+def law_free_parameters(spec: ModelSpec, elastic: bool = True) -> list[str]:
+    """The elastic law's (unless ``elastic`` is false), the damping's and Bouc-Wen's free
+    parameters of ``spec`` (already set to its experiment's rig), as default_free_parameters
+    describes them; creep is left to the caller."""
     payload = spec.rig == "payload"
     names: list[str] = []
-    if experiment == "creep" and (spec.stiffness == "cubic" or spec.hysteresis == "kawabata"):
-        pass      # two load levels cannot determine a three-coefficient law: fit it on a load test
+    if not elastic:
+        pass
     elif spec.hysteresis == "kawabata":
         names += ["kaw_LT", "kaw_RT", "kaw_F_ref"] + ([] if payload else ["kaw_residual"])
     elif spec.stiffness == "cubic":
@@ -181,8 +194,6 @@ def default_free_parameters(spec, experiment: str) -> list[str]:
         names += ["c0"] + (["c1", "c2"] if spec.damping == "displacement" else [])
     if spec.hysteresis == "boucwen":
         names += ["bw_A", "bw_beta", "bw_gamma"]
-    if spec.creep and experiment == "creep":
-        names += _CREEP_FREE
     return names
 
 
