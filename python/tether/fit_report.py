@@ -8,7 +8,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .report import PAGE_STYLE, UNITS, pyplot, save_figure_atomic, write_json_atomic, write_text_atomic
+from .report import PAGE_STYLE, UNITS, plot_load_loop, pyplot, save_figure_atomic, write_json_atomic, write_text_atomic
 
 
 def plot_trace_fit(trace, predicted: np.ndarray, rms: float, noise: float, model: str, path: Path) -> None:
@@ -36,14 +36,7 @@ def plot_trace_fit(trace, predicted: np.ndarray, rms: float, noise: float, model
     ax2.legend(loc="best", fontsize=8)
     ax2.grid(alpha=0.3)
     if load_test:
-        ax3 = fig.add_subplot(gs[:, 1])
-        ax3.plot(trace.measured, trace.input, ".", ms=2, color="0.55", label="measured")
-        ax3.plot(predicted, trace.input, "-", lw=1.0, color="C0", label="fitted")
-        ax3.set_xlabel(f"{col} [{unit}]")
-        ax3.set_ylabel("load [N]")
-        ax3.set_title("tension-elongation loop", fontsize=10)
-        ax3.legend(loc="best", fontsize=8)
-        ax3.grid(alpha=0.3)
+        plot_load_loop(fig.add_subplot(gs[:, 1]), trace.measured, trace.input, predicted, "fitted", f"{col} [{unit}]", "load [N]")
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)

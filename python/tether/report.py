@@ -75,14 +75,8 @@ def plot_validation(v, path: Path) -> None:
     ax2.legend(loc="best", fontsize=8)
     ax2.grid(alpha=0.3)
     if load_test:
-        ax3 = fig.add_subplot(gs[:, 1])
-        ax3.plot(tr.measured, tr.input, ".", ms=2, color="0.55", label="measured")
-        ax3.plot(v.result.predicted, tr.input, "-", lw=1.0, color="C0", label="simulated")
-        ax3.set_xlabel("elongation [m]")
-        ax3.set_ylabel("load (tension) [N]")
-        ax3.set_title("tension-elongation loop", fontsize=10)
-        ax3.legend(loc="best", fontsize=8)
-        ax3.grid(alpha=0.3)
+        plot_load_loop(fig.add_subplot(gs[:, 1]), tr.measured, tr.input, v.result.predicted, "simulated",
+                       "elongation [m]", "load (tension) [N]")
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)
@@ -150,3 +144,14 @@ error is at most {1.2}× the noise σ the trace states (synthetic reference trac
 {''.join(figs)}
 </body></html>
 """
+
+
+def plot_load_loop(ax, measured, load, predicted, label: str, xlabel: str, ylabel: str) -> None:
+    """The tension-elongation loop of a load test: measured points and the model's curve."""
+    ax.plot(measured, load, ".", ms=2, color="0.55", label="measured")
+    ax.plot(predicted, load, "-", lw=1.0, color="C0", label=label)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title("tension-elongation loop", fontsize=10)
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
