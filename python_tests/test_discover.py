@@ -116,6 +116,34 @@ def test_a_hidden_effect_is_named_and_the_gap_closes(tmp_path, run_cli, experime
     assert doc["rmse_final"] <= 1.5 * sigma           # ... the discovered model is at the noise
 
 
+def test_shape_refinement_follows_a_damping_that_levels_off(tmp_path, run_cli):
+    """The generator's damping rises with |x| and levels off (a Gaussian step, not the paper's
+    polynomial). Discovery names nonlinear_damping; the polynomial leaves the record above the
+    noise; the tabulated part of c(x), freed at the end, brings it to the noise without changing
+    the name; the JSON records the refinement and, as a --params file, reruns the refined model
+    through the FMU at the same error."""
+    spec = dict(he.suite_specs(48))["47_forced_nldamp"]
+    kw = dict(spec)
+    stem, tr = _write(tmp_path, "forced_levels_off", kw.pop("experiment"), kw.pop("effects"), kw.pop("seed"), **kw)
+    assert tr.meta["hidden"]["laws"]["damping"] == "gauss"
+    doc, out, _ = _discover_cli(run_cli, stem, tmp_path)
+    sigma = tr.meta["hidden"]["noise_sigma_m"]
+    assert doc["added_effects"] == ["nonlinear_damping"]
+    polynomial = doc["steps"][-1]["rmse_after"]
+    kept = [r for r in doc["refinements"] if r["accepted"]]
+    assert len(kept) == 1 and kept[0]["effect"] == "nonlinear_damping", doc["refinements"]
+    assert kept[0]["rmse_before"] == pytest.approx(polynomial) and polynomial > 2.0 * sigma
+    assert doc["rmse_final"] == pytest.approx(kept[0]["rmse_after"]) and doc["rmse_final"] <= 1.5 * sigma
+    assert doc["shape_refined"] == kept[0]["parameters"] and doc["parameters"]["c_table_dx"] > 0
+    assert "shape of nonlinear_damping refined" in out
+    sim = tmp_path / "sim.csv"
+    status, _, err = run_cli("simulate", stem, "--params", tmp_path / "forced_levels_off.discovery.json",
+                             "--out", sim)
+    assert status == 0, err
+    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
+    assert float(np.sqrt(np.mean((y - tr.measured) ** 2))) == pytest.approx(doc["rmse_final"], rel=1e-3)
+
+
 def test_bundled_trace_two_effects_json_report_and_rerun(tmp_path, run_cli):
     """The demo's record (power-law stiffness and slack hidden): both named, in steps that each
     shrink the gap; the JSON has the contract's fields; the report shows the story; the JSON is a

@@ -31,7 +31,7 @@ def plot_models(d, path: Path) -> None:
         ax.plot(t, tr.measured, ".", ms=1.5, color="0.55", label=f"measured {col}")
         ax.plot(t, f.predicted, "-", lw=0.9, color=f"C{i}", label=f"model {f.model}")
         title = "start" if i == 0 else f"model {i + 1}"
-        ax.set_title(f"{title}: {f.model}, RMS error {f.rms:.3g} m = {f.rms / sigma:.2f} × noise", fontsize=9)
+        ax.set_title(f"{title}: {f.label}, RMS error {f.rms:.3g} m = {f.rms / sigma:.2f} × noise", fontsize=9)
         ax.set_ylabel(f"{col} [m]")
         ax.legend(loc="upper right", fontsize=7)
         ax.grid(alpha=0.3)
@@ -69,7 +69,7 @@ def plot_gap(d, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(8, 4.2))
     xs = list(range(len(d.fits)))
     ax.plot(xs, [f.rms / sigma for f in d.fits], "o-", color="C0", lw=2, label="model (whole record)")
-    held = [s.heldout_before / sigma for s in d.steps]
+    held = [s.heldout_before / sigma for s in d.steps] + [r.heldout_after / sigma for r in d.refinements if r.accepted]
     if len(held) == len(xs):
         ax.plot(xs, held, "s--", color="C1", label="held-out part (fit on the first part)")
     for i, st in enumerate(d.steps):
@@ -82,7 +82,7 @@ def plot_gap(d, path: Path) -> None:
                         textcoords="offset points")
     ax.axhline(1.0, color="k", lw=0.8, label="noise level")
     ax.set_yscale("log")
-    labels = [f.model for f in d.fits]
+    labels = [f.label.replace(" (", "\n(") for f in d.fits]
     ax.set_xticks(xs, labels, fontsize=8, rotation=15)
     ax.set_ylabel("RMS error / noise σ")
     ax.set_title("the gap, step by step (crosses: candidates that did not earn their parameters)", fontsize=9)
@@ -133,6 +133,18 @@ def discovery_page(d, doc: dict, images: dict) -> str:
                      f"<th>verdict</th></tr>{cands}</table>")
         verdict = f"<p>Added: <b>{esc(r['added'])}</b>.</p>" if r["added"] else f"<p>Stopped: {esc(doc['stop_reason'])}</p>"
         rounds.append(f"<h3>{head}</h3>{body}{verdict}")
+    refined = "".join(
+        f"<tr class={'good' if r['accepted'] else 'bad'}><td class=l>{esc(r['effect'])}</td>"
+        f"<td class=l>{esc(' '.join(r['parameters']))}</td><td>{_f(r['rmse_before_over_noise'], '.2f')}</td>"
+        f"<td>{_f(r['rmse_after_over_noise'], '.2f')}</td><td>{_f(r['heldout_rmse_before'] / sigma, '.2f')}</td>"
+        f"<td>{_f(r['heldout_rmse_after'] / sigma, '.2f')}</td><td>{_f(r['bic_change'], '.0f')}</td>"
+        f"<td class=l>{esc(r['verdict'])}</td></tr>" for r in doc["refinements"])
+    if refined:
+        refined = ("<h2>The shape of the named laws</h2><p>With the effects named, the shape terms of their laws "
+                   "were freed one group at a time (kept when the BIC falls and the held-out part does not get "
+                   "worse; the best group wins). This changes no effect's name.</p><table><tr><th>effect</th>"
+                   "<th>terms freed</th><th>RMS / σ before</th><th>after</th><th>held-out RMS / σ before</th>"
+                   f"<th>after</th><th>ΔBIC</th><th>verdict</th></tr>{refined}</table>")
     added = ", ".join(doc["added_effects"]) or "nothing"
     return f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>Discovery: {esc(tr.name)}</title><style>{PAGE_STYLE}
@@ -155,6 +167,7 @@ begins: the candidate fits used for the held-out test saw only the record before
 <img src="{esc(images['models'])}" alt="models">
 <h2>Every round</h2>{''.join(rounds)}
 <p>Stopped: {esc(doc['stop_reason'])}</p>
+{refined}
 </body></html>
 """
 
