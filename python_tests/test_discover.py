@@ -36,7 +36,11 @@ def _discover_cli(run_cli, stem, tmp_path, *extra):
     out = tmp_path / f"{Path(stem).name}.discovery.json"
     status, stdout, stderr = run_cli("discover", stem, "--json", out, *extra)
     assert status == 0, stderr
-    return json.loads(out.read_text()), stdout, stderr
+    return json.loads(out.read_text(), parse_constant=_strict), stdout, stderr
+
+
+def _strict(token):
+    raise AssertionError(f"not JSON: {token} (a strict parser such as jq refuses it)")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import html
 import json
+import math
 from pathlib import Path
 from typing import Sequence
 
@@ -17,7 +18,21 @@ def write_text_atomic(path: Path, text: str) -> None:
 
 
 def write_json_atomic(path: Path, doc) -> None:
-    write_text_atomic(path, json.dumps(doc, indent=2, default=_jsonable) + "\n")
+    """Strict JSON (what jq and every other parser reads): a number that is not finite (a held-out
+    error never asked, a fit that failed) is written as null."""
+    write_text_atomic(path, json.dumps(_finite(doc), indent=2, default=_jsonable, allow_nan=False) + "\n")
+
+
+def _finite(o):
+    if isinstance(o, np.ndarray):
+        return _finite(o.tolist())
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite(v) for v in o]
+    if isinstance(o, (float, np.floating)) and not math.isfinite(float(o)):
+        return None
+    return o
 
 
 def _jsonable(o):
