@@ -220,8 +220,9 @@ def report(rows, wall):
         c = Counter((e in r["hidden"], e in r["named"]) for r in rel)
         print(f"{e:22s} {c[(True, True)]:12d} {c[(True, False)]:13d} {c[(False, True)]:12d} {c[(False, False)]:8d}")
     print("\nhidden set -> named set (counts):")
-    pairs = Counter((",".join(SHORT[e] for e in r["hidden"]) or "-",
-                     ",".join(SHORT[e] for e in r["named"]) if r.get("named") is not None else "ERROR") for r in rows)
+    pairs = Counter((",".join(sorted(SHORT[e] for e in r["hidden"])) or "-",
+                     (",".join(sorted(SHORT[e] for e in r["named"])) or "-") if r.get("named") is not None
+                     else "ERROR") for r in rows)
     for (h, nm), c in sorted(pairs.items()):
         print(f"  {h:20s} -> {nm:24s} {c:3d}{'' if h == nm else '   <- wrong'}")
     print("\nexact set per experiment:")

@@ -212,6 +212,49 @@ def test_missing_trace_and_bad_outputs_exit_2_and_write_nothing(tmp_path, run_cl
     assert status == 2 and "--json" in err
     status, _, err = run_cli("discover", stem, "--json", out, "--start", "linear+wobble")
     assert status == 2 and "wobble" in err and not out.exists()
+    for bad in ("0", "-5", "nan", "soon"):
+        status, _, err = run_cli("discover", stem, "--json", out, "--budget", bad)
+        assert status == 2 and "--budget" in err and bad in err and not out.exists(), (bad, err)
+
+
+def test_a_spent_budget_adds_nothing_unjudged_and_says_so(tmp_path, run_cli):
+    # a hidden effect the linear baseline misses by far (>= 4.7 x noise on the suite); with a
+    # budget spent before the first step the run still ends in order: the baseline is the
+    # result, nothing is named, and the account and the record say why
+    stem, tr = _write(tmp_path, "t", "free_vibration", {"nonlinear_stiffness"}, 5, noise=1e-4, rate=100.0)
+    doc, stdout, _ = _discover_cli(run_cli, stem, tmp_path, "--budget", "1e-6")
+    assert doc["added_effects"] == [] and doc["final_model"] == "linear"
+    assert doc["rmse_final"] == doc["rmse_initial"] > 3 * doc["noise_estimate"]
+    assert "time budget" in doc["stop_reason"] and "--budget" in doc["stop_reason"]
+    assert "time budget" in stdout
+
+
+def test_a_step_cut_short_by_the_budget_is_not_taken(tmp_path, monkeypatch):
+    # a clock that jumps past the budget while the first candidate is fitted: that step is not
+    # judged to the end, so even the effect that would win it (the hidden one) is not added
+    import time as real_time
+    import types
+
+    stem, _ = _write(tmp_path, "t", "free_vibration", {"nonlinear_stiffness"}, 5, noise=1e-4, rate=100.0)
+    clock = {"offset": 0.0}
+    monkeypatch.setattr(D, "time", types.SimpleNamespace(perf_counter=lambda: real_time.perf_counter() + clock["offset"]))
+    original = D.fit_model
+
+    def fit_model(trace, spec, effects, *a, **kw):
+        r = original(trace, spec, effects, *a, **kw)
+        if "nonlinear_stiffness" in effects:
+            clock["offset"] += 1e4
+        return r
+
+    monkeypatch.setattr(D, "fit_model", fit_model)
+    d = D.discover(read_trace(stem), budget=600.0)
+    assert d.added_effects == [] and d.final.model == "linear"
+    assert "while the candidates of step 1" in d.stop_reason
+    assert d.steps[0].candidates and all(not c.accepted and "time budget" in c.verdict for c in d.steps[0].candidates)
+    # the same record with time enough names it (the cut above is the budget's doing)
+    monkeypatch.setattr(D, "fit_model", original)
+    clock["offset"] = 0.0
+    assert D.discover(read_trace(stem), budget=600.0).added_effects == ["nonlinear_stiffness"]
 
 
 def test_noise_free_record_is_refused_with_a_reason(tmp_path, run_cli, write_trace):

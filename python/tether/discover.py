@@ -320,11 +320,21 @@ class _OutOfTime(Exception):
     pass
 
 
-def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, **options):
+#: the default bound of one discovery run [s]
+DEFAULT_BUDGET = 900.0
+
+
+#: the message of a fit stopped by the discovery's time budget
+OUT_OF_BUDGET = "stopped: the discovery's time budget is spent"
+
+
+def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, deadline: float | None = None,
+              **options):
     """One fit through tether.fit.fit_traces; on a failure of its staging (a log-scaled parameter
     driven to 0 by the first stage) one direct engine fit of all free parameters instead. A fit
     that runs past ``time_cap`` seconds (a start that wandered where the equations turn stiff and
-    every simulation crawls) is abandoned."""
+    every simulation crawls), or past the discovery's ``deadline`` (a time.perf_counter() value),
+    is abandoned."""
     from .fit import fit_traces
 
     st = None if start is None else _clean_start(names, start, sc)
@@ -334,17 +344,23 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, **op
     options = {**ENGINE_OPTIONS, **options}
     t0 = time.perf_counter()
 
+    if deadline is not None and t0 >= deadline:
+        return None, OUT_OF_BUDGET
+
     def watch(_p):
-        if time_cap is not None and time.perf_counter() - t0 > time_cap:
-            raise _OutOfTime()
+        now = time.perf_counter()
+        if time_cap is not None and now - t0 > time_cap:
+            raise _OutOfTime(f"abandoned after {time_cap:.0f} s")
+        if deadline is not None and now > deadline:
+            raise _OutOfTime(OUT_OF_BUDGET)
 
     iterations = int(options.pop("max_iterations", 100))
     while True:
         try:
             return fit_traces([trace], spec, free=names, start=st, fixed=held or None, progress=watch,
                               max_iterations=iterations, **options), ""
-        except _OutOfTime:
-            return None, f"abandoned after {time_cap:.0f} s"
+        except _OutOfTime as exc:
+            return None, str(exc)
         except (RuntimeError, ValueError) as exc:
             msg = " ".join(str(exc).split())
         # the engine drops a whole fit when a Jacobian column fails to simulate late in it (the
@@ -1142,10 +1158,13 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
 
 
 def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None] | None = None,
-             max_steps: int = 4, heldout_candidates: int = 2) -> Discovery:
+             max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET) -> Discovery:
     """Run the discovery loop on one trace (see the module docstring). ``progress`` receives one
-    line per stage."""
+    line per stage. ``budget`` [s] bounds the run: a step whose fits are not all done when it is
+    spent adds nothing, and the discovery stops with the model it has, saying so."""
     t_begin = time.perf_counter()
+    deadline = None if budget is None else t_begin + float(budget)
+    budget_hit = [False]
     say = progress or (lambda s: None)
     noise = estimate_noise(trace)
     sigma = noise.sigma
@@ -1169,7 +1188,14 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     cap = max(5.0, 2000.0 * t_sim)
 
     def fit(tr, sp, eff, starts, scales, extra=()):
-        return fit_model(tr, sp, eff, starts, scales, time_cap=cap, extra=extra)
+        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap, extra=extra, deadline=deadline)
+        if deadline is not None and time.perf_counter() > deadline:
+            budget_hit[0] = True          # this fit may have been cut short: it cannot judge
+        return r
+
+    def out_of_budget(where: str) -> str:
+        return (f"the time budget of {budget:.0f} s was spent {where}; the model is the last one that was "
+                f"fully judged (rerun with a larger --budget to go on)")
 
     cur_part = fit(part, spec, base_effects, [cur.params], sc_part)
     cur_held = _heldout(trace, spec, cur_part.params, first)
@@ -1189,6 +1215,10 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             break
         if len([s for s in steps if s.effect]) >= max_steps:
             stop = f"stopped after {max_steps} added effects"
+            break
+        if deadline is not None and time.perf_counter() > deadline:
+            budget_hit[0] = True
+            stop = out_of_budget(f"before step {len(steps)}")
             break
         sig = signatures(trace, cur, sigma, masks)
         todo = [(e, m) for e in candidates(trace) if e not in cur.effects for m in _models_for(cur.spec, e, trace)]
@@ -1242,6 +1272,13 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             c.verdict += "; not tested on the held-out part (a better candidate was)"
         results.sort(key=lambda c: (not c.accepted, c.bic_change))
         step.candidates = results
+        if budget_hit[0]:
+            for c in results:
+                c.accepted = False
+                c.verdict += "; not judged to the end: the time budget ran out during this step"
+                c.fit = c.part_fit = None
+            stop = out_of_budget(f"while the candidates of step {len(steps)} were fitted")
+            break
         win = results[0]
         for c in results:
             say(f"  {c.effect}: {'earns' if c.accepted and c is win else 'does not earn'} its parameters: {c.verdict}")
@@ -1278,11 +1315,21 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             cur_held = _heldout(trace, red, rp.params, first) if rp.ok else float("inf")
             fits.append(cur)
             break
-    refined, _, refinements = refine_shapes(
-        trace, part, first, cur, cur_held, sigma,
-        lambda tr, sp, eff, starts, extra: fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra), sc, say)
-    if refined is not cur:
-        fits.append(refined)
+    refinements = []
+    if not budget_hit[0]:
+        refined, _, refinements = refine_shapes(
+            trace, part, first, cur, cur_held, sigma,
+            lambda tr, sp, eff, starts, extra: fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra), sc,
+            say)
+        if budget_hit[0]:
+            for r in refinements:
+                if r.accepted:
+                    r.accepted = False
+                    r.verdict += "; not kept: the time budget ran out during this stage"
+            refined = cur
+            stop += "; " + out_of_budget("while the shapes of the laws were refined")
+        if refined is not cur:
+            fits.append(refined)
     return Discovery(trace=trace, noise=noise, start_model=spec.canonical, fits=fits, steps=steps, stop_reason=stop,
                      seconds=time.perf_counter() - t_begin, heldout_start=float(trace.time[first]),
                      removals=removals, refinements=refinements)

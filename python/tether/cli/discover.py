@@ -23,6 +23,8 @@ steps (effect, where, evidence, rmse_before, rmse_after) and final_params. OUT.j
 parameter file of the discovered model: `tether simulate OTHER.csv --params OUT.json`.
 --report DIR writes DIR/index.html: the record against each model in turn, the residuals with the
 flagged windows, and the gap shrinking step by step.
+--budget SECONDS bounds the run (default 900 s; long records at high rates with several effects
+can need more): a step whose fits are not all done when it is spent adds nothing.
 
 Exit status: 0 done; 2 bad input; 1 engine or FMU failure.
 """
@@ -34,6 +36,22 @@ def add_arguments(parser) -> None:
                         help="model to start from (default: linear, the trace format's baseline)")
     parser.add_argument("--json", metavar="OUT.json", required=True, help="discovery record to write")
     parser.add_argument("--report", metavar="DIR", help="write DIR/index.html with the story in plots")
+    parser.add_argument("--budget", metavar="SECONDS", type=_seconds, default=None,
+                        help="bound the run (default 900 s): a step not judged to the end when it is spent "
+                             "adds nothing, and the account says so")
+
+
+def _seconds(text: str) -> float:
+    import argparse
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return v
 
 
 def run(args) -> int:
@@ -59,7 +77,8 @@ def run(args) -> int:
         sys.stderr.flush()
 
     try:
-        d = discover(trace, start=args.start, progress=progress)
+        d = discover(trace, start=args.start, progress=progress,
+                     **({} if args.budget is None else {"budget": args.budget}))
     except DiscoveryError as e:
         raise CLIError(str(e), RUN_ERROR) from None
     except RuntimeError as e:
