@@ -22,10 +22,12 @@ static double damping_table(const tether_params *p, double ax)
     return knot[k] + f * (knot[k + 1] - knot[k]);
 }
 
-double damping_coefficient(const tether_params *p, double x)
+double damping_coefficient(const tether_params *p, double x, double v)
 {
     if (p->damping == DAMPING_VISCOUS) return p->c0;
     const double ax = fabs(x);
-    const double c = p->c0 + p->c1 * ax + p->c2 * x * x + damping_table(p, ax);
+    /* c_drag |v|: the damping force c_drag |v| v of a body moving through air or water, which
+     * also damps large amplitudes more than small ones, but through the velocity */
+    const double c = p->c0 + p->c1 * ax + p->c2 * x * x + damping_table(p, ax) + p->c_drag * fabs(v);
     return c > 0.0 ? c : 0.0; /* a damper takes energy out, never puts it in */
 }

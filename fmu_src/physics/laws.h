@@ -24,8 +24,9 @@ double elastic_compression_limit(const tether_params *p);
 int elastic_strain_at(const tether_params *p, double T, double *eps);
 
 /* ---- damping (paper: dynamical property) -------------------------------------------------- */
-/* Damping coefficient: c0 (viscous) or c(x) = c0 + c1 |x| + c2 x^2 (displacement-dependent). */
-double damping_coefficient(const tether_params *p, double x);
+/* Damping coefficient: c0 (viscous) or c(x) = c0 + c1 |x| + c2 x^2 + table(|x|) + c_drag |v|
+ * (displacement-dependent, with an optional velocity-quadratic drag); v is the elongation rate. */
+double damping_coefficient(const tether_params *p, double x, double v);
 
 /* ---- Kawabata loading/unloading hysteresis ------------------------------------------------ */
 #define KAWABATA_MAX_REVERSALS 64

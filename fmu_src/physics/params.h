@@ -19,9 +19,11 @@ typedef struct {
     double m, g, x0, v0;
     /* elastic law */
     double EA, a1, a2, a3;
-    /* damping: c(x) = c0 + c1 |x| + c2 x^2 + a table over |x| (knots c_table_dx apart) */
+    /* damping: c(x) = c0 + c1 |x| + c2 x^2 + a table over |x| (knots c_table_dx apart),
+     * plus c_drag |v| (velocity-quadratic drag) */
     double c0, c1, c2;
     double c_table_dx, c_table_1, c_table_2, c_table_3, c_table_4, c_table_5, c_table_6;
+    double c_drag;
     /* Kawabata */
     double kaw_LT, kaw_RT, kaw_eps_ref, kaw_F_ref, kaw_residual;
     /* Bouc-Wen */

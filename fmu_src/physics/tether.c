@@ -100,7 +100,7 @@ static void evaluate(const tether_model *M, double t, const double *y, tether_in
     s->eps_m = s->u / s->L0 - s->eps_c;
     s->F = static_tension(M, s->eps_m);
     s->z = p->hysteresis == HYSTERESIS_BOUCWEN ? y[ST_HYSTERETIC_FORCE] : 0.0;
-    s->c = damping_coefficient(p, s->x);
+    s->c = damping_coefficient(p, s->x, s->udot);
     if (p->rig == RIG_LOAD) {
         /* quasi-static: the mechanical strain follows T = F(eps_m) + z; see tether.h */
         s->T = input_load(M, t);
@@ -161,6 +161,7 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (!(p->c0 >= 0.0)) FAIL("c0 = %g N.s/m: expected c0 >= 0", p->c0);
     if (!(p->c1 >= 0.0)) FAIL("c1 = %g N.s/m2: expected c1 >= 0", p->c1);
     if (!(p->c2 >= 0.0)) FAIL("c2 = %g N.s/m3: expected c2 >= 0", p->c2);
+    if (!(p->c_drag >= 0.0)) FAIL("c_drag = %g kg/m: expected c_drag >= 0", p->c_drag);
     if (p->hysteresis == HYSTERESIS_KAWABATA) {
         if (!(p->kaw_LT > 0.05 && p->kaw_LT < 1.95)) FAIL("kaw_LT = %g: expected a linearity in (0.05, 1.95)", p->kaw_LT);
         if (!(p->kaw_RT > 0.0 && p->kaw_RT <= 1.0)) FAIL("kaw_RT = %g: expected a resilience in (0, 1]", p->kaw_RT);

@@ -54,9 +54,10 @@ CANDIDATES = {
 SHAPE_TERMS = {
     ("hysteresis", "boucwen"): (("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
                                 ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")),
-    # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
+    # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen; or
+    # a damping that grows with the speed rather than the displacement (velocity-quadratic drag)
     ("nonlinear_damping", "displacement"): (("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
-                                             "c_table_6"),),
+                                             "c_table_6"), ("c_drag",)),
 }
 
 
@@ -89,6 +90,23 @@ def _shape_start(params: dict, group: Sequence[str], sc: _Scales) -> dict:
             if not p.get(g):
                 p[g] = 0.1 * float(p.get("c0", 1.0))
     return p
+
+
+def _shape_starts(params: dict, group: Sequence[str], sc: _Scales) -> list[dict]:
+    """Starts for freeing ``group`` from the final model. For the drag c_drag |v| two: the final
+    c(x) with a small drag beside it, and the drag that dissipates as much per cycle at the typical
+    amplitude A as c1 |x| + c2 x^2 do (with x = A cos wt: c1/(2 w) + 3 pi c2 A/(32 w)) in their
+    place: a damping of that form found as c(x) is a drag seen through the displacement."""
+    if "c_drag" not in group or params.get("c_drag"):
+        return [_shape_start(params, group, sc)]
+    omega = sc.omega if sc.omega > 0 else 1.0
+    c0, c1, c2 = (float(params.get(k, 0.0)) for k in ("c0", "c1", "c2"))
+    beside = dict(params, c_drag=0.05 * max(c0, 1e-9) / (sc.amp * omega))
+    equivalent = c1 / (2.0 * omega) + 3.0 * math.pi * c2 * sc.amp / (32.0 * omega)
+    if not equivalent > 0:
+        return [beside]
+    instead = dict(params, c_drag=equivalent, c1=0.05 * c1, c2=0.05 * c2)
+    return [beside, instead]
 
 
 class DiscoveryError(RuntimeError):
@@ -177,6 +195,7 @@ class _Scales:
     force: float           # typical hysteretic force scale [N]: k*amp (payload) or the largest load
     rig: str
     hold: float = 0.0      # longest time the load stays put [s] (load rig; 0 for the payload rig)
+    omega: float = 0.0     # natural angular frequency sqrt(k/m) [rad/s] (payload rig; 0 for the load rig)
 
 
 def _longest_hold(t: np.ndarray, load: np.ndarray) -> float:
@@ -206,7 +225,8 @@ def _scales(trace: Trace) -> _Scales:
     amp = float(est.get("_amp", 0.0)) or max(float(np.max(np.abs(y))), 1e-9)
     m, g = float(trace.payload_mass_kg), float(trace.gravity_m_s2)
     eps = (m * g / k) / L0 if g > 0 else amp / L0
-    return _Scales(L0=L0, ea=k * L0, k=k, amp=amp, eps=max(eps, 1e-9), force=max(k * amp, 1e-9), rig="payload")
+    return _Scales(L0=L0, ea=k * L0, k=k, amp=amp, eps=max(eps, 1e-9), force=max(k * amp, 1e-9), rig="payload",
+                   omega=math.sqrt(k / m) if m > 0 else 0.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -271,7 +291,7 @@ def _floor(name: str, sc: _Scales) -> float:
             "bw_beta": 1e-2 / sc.amp, "bw_gamma": 1e-2 / sc.amp}.get(name, 0.0)
 
 
-_POSITIVE = ("EA", "a1", "c0", "c1", "c2", "bw_A", "kaw_F_ref", "creep_J1", "creep_J2", "creep_J3",
+_POSITIVE = ("EA", "a1", "c0", "c1", "c2", "c_drag", "bw_A", "kaw_F_ref", "creep_J1", "creep_J2", "creep_J3",
              "slip_capacity0", "slip_rate", "creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau",
              "slip_limit", "slip_load_half")
 
@@ -1128,7 +1148,7 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
         return cur, cur_held, []
     out, best = [], None
     for effect, group in groups:
-        fm = fit(trace, cur.spec, cur.effects, [_shape_start(cur.params, group, sc)], extra=group)
+        fm = fit(trace, cur.spec, cur.effects, _shape_starts(cur.params, group, sc), extra=group)
         if not fm.ok:
             out.append(Refinement(effect, group, cur.rms, float("inf"), cur_held, float("nan"), float("inf"), False,
                                   f"the fit failed: {fm.message}"))
