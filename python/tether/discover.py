@@ -54,10 +54,9 @@ CANDIDATES = {
 SHAPE_TERMS = {
     ("hysteresis", "boucwen"): (("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
                                 ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")),
-    # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen; or
-    # a damping that grows with the speed rather than the displacement (velocity-quadratic drag)
+    # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
     ("nonlinear_damping", "displacement"): (("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
-                                             "c_table_6"), ("c_drag",)),
+                                             "c_table_6"),),
 }
 
 
@@ -90,23 +89,6 @@ def _shape_start(params: dict, group: Sequence[str], sc: _Scales) -> dict:
             if not p.get(g):
                 p[g] = 0.1 * float(p.get("c0", 1.0))
     return p
-
-
-def _shape_starts(params: dict, group: Sequence[str], sc: _Scales) -> list[dict]:
-    """Starts for freeing ``group`` from the final model. For the drag c_drag |v| two: the final
-    c(x) with a small drag beside it, and the drag that dissipates as much per cycle at the typical
-    amplitude A as c1 |x| + c2 x^2 do (with x = A cos wt: c1/(2 w) + 3 pi c2 A/(32 w)) in their
-    place: a damping of that form found as c(x) is a drag seen through the displacement."""
-    if "c_drag" not in group or params.get("c_drag"):
-        return [_shape_start(params, group, sc)]
-    omega = sc.omega if sc.omega > 0 else 1.0
-    c0, c1, c2 = (float(params.get(k, 0.0)) for k in ("c0", "c1", "c2"))
-    beside = dict(params, c_drag=0.05 * max(c0, 1e-9) / (sc.amp * omega))
-    equivalent = c1 / (2.0 * omega) + 3.0 * math.pi * c2 * sc.amp / (32.0 * omega)
-    if not equivalent > 0:
-        return [beside]
-    instead = dict(params, c_drag=equivalent, c1=0.05 * c1, c2=0.05 * c2)
-    return [beside, instead]
 
 
 class DiscoveryError(RuntimeError):
@@ -273,6 +255,8 @@ def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
 
     spec = spec.for_experiment(experiment)
     names = law_free_parameters(spec)
+    if spec.rig == "payload" and spec.damping == "displacement":
+        names.append("c_drag")   # nonlinear damping through the displacement or through the speed
     if spec.creep:
         # a load-unload test (minutes) sees the fast cells and the slip rate; a creep test (hours
         # of holds) the time constants and the slip's shape as well
@@ -542,10 +526,14 @@ def candidate_starts(base: ModelFit, new: ModelSpec, sc: _Scales) -> list[dict |
         if new.hysteresis == "none":
             starts.append(None)
     elif new.damping == "displacement" and old.damping != "displacement":
+        # c(x) growing with |x| or x^2, or a drag c_drag |v| growing with the speed amp * omega
         c0 = warm.get("c0", 1.0)
-        for r1, r2 in ((1e-2, 1e-3), (1.0, 1e-3), (1e-3, 1.0)):
+        speed = sc.amp * (sc.omega if sc.omega > 0 else 1.0)
+        for r1, r2, rd in ((1e-2, 1e-3, 1e-2), (1.0, 1e-3, 1e-2), (1e-3, 1.0, 1e-2), (1e-3, 1e-3, 1.0)):
             w = dict(warm)
-            w.update(c0=c0 * (1.0 - 0.3 * max(r1, r2)), c1=r1 * c0 / sc.amp, c2=r2 * c0 / sc.amp ** 2)
+            w.update(c0=c0 * (1.0 - 0.3 * max(r1, r2, rd)), c1=r1 * c0 / sc.amp, c2=r2 * c0 / sc.amp ** 2)
+            if "c_drag" in new.parameters:
+                w["c_drag"] = rd * c0 / speed
             starts.append(w)
     elif new.hysteresis == "boucwen" and old.hysteresis != "boucwen":
         # first a start next to the base model (a weak, barely saturating force): the fit can only
@@ -1148,7 +1136,7 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
         return cur, cur_held, []
     out, best = [], None
     for effect, group in groups:
-        fm = fit(trace, cur.spec, cur.effects, _shape_starts(cur.params, group, sc), extra=group)
+        fm = fit(trace, cur.spec, cur.effects, [_shape_start(cur.params, group, sc)], extra=group)
         if not fm.ok:
             out.append(Refinement(effect, group, cur.rms, float("inf"), cur_held, float("nan"), float("inf"), False,
                                   f"the fit failed: {fm.message}"))
@@ -1214,7 +1202,10 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     t_sim = time.perf_counter() - t_sim
     cap = max(5.0, 2000.0 * t_sim)
 
+    shape_free: tuple = ()        # shape terms a refinement freed, kept free in every later fit
+
     def fit(tr, sp, eff, starts, scales, extra=()):
+        extra = tuple(extra) + tuple(k for k in shape_free if k not in extra and k in sp.parameters)
         r = fit_model(tr, sp, eff, starts, scales, time_cap=cap, extra=extra, deadline=deadline)
         if deadline is not None and time.perf_counter() > deadline:
             budget_hit[0] = True          # this fit may have been cut short: it cannot judge
@@ -1231,132 +1222,155 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     steps: list[Step] = []
     removals: list[Removal] = []
     stop = ""
-    while True:
-        masks = regimes(trace, cur)
-        windows = disagreement(trace, cur, sigma, masks)
-        step = Step(model_before=cur.model, rms_before=cur.rms, heldout_before=cur_held, windows=windows,
-                    regimes=regime_table(trace, cur, sigma, masks), candidates=[])
-        steps.append(step)
-        if cur.rms <= WITHIN_NOISE * sigma:
-            stop = f"the model reproduces the record within the noise (RMS error {cur.rms / sigma:.2f} x noise)"
-            break
-        if len([s for s in steps if s.effect]) >= max_steps:
-            stop = f"stopped after {max_steps} added effects"
-            break
-        if deadline is not None and time.perf_counter() > deadline:
-            budget_hit[0] = True
-            stop = out_of_budget(f"before step {len(steps)}")
-            break
-        sig = signatures(trace, cur, sigma, masks)
-        todo = [(e, m) for e in candidates(trace) if e not in cur.effects for m in _models_for(cur.spec, e, trace)]
-        if not todo:
-            stop = "every effect the experiment can reveal is in the model"
-            break
-        results = []
-        for eff, new in todo:
-            fm = fit(trace, new, cur.effects + (eff,), candidate_starts(cur, new, sc), sc)
-            dk = fm.n_free - cur.n_free
-            bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
-            cr = CandidateResult(effect=eff, model=fm.model, added_parameters=dk, rms=fm.rms,
-                                 heldout_rms=float("nan"), bic_change=bic,
-                                 signature=float(sig.get(eff, {}).get("score", 0.0)),
-                                 signature_text=sig.get(eff, {}).get("text", ""), fit=fm)
-            if fm.ok:
-                cr.accepted, cr.verdict = full_data_verdict(sigma, cur.rms, fm.rms, bic, dk)
-            else:
-                cr.accepted, cr.verdict = False, f"the fit failed: {fm.message}"
-            say(f"  + {eff}: RMS error {fm.rms / sigma:.2f} x noise with {dk} more parameter{'s' if dk != 1 else ''} "
-                f"({fm.seconds:.1f} s)")
-            results.append(cr)
-        # an effect with two laws (hysteresis in a load test: Bouc-Wen or Kawabata) competes with
-        # the better of them
-        best_of: dict[str, CandidateResult] = {}
-        for c in results:
-            b = best_of.get(c.effect)
-            if b is None or (c.fit.ok and (not b.fit.ok or c.bic_change < b.bic_change)):
-                best_of[c.effect] = c
-        results = list(best_of.values())
-        # the held-out test for the best few that pass on the whole record
-        passing = sorted([c for c in results if c.accepted], key=lambda c: c.bic_change)
-        tested = 0
-        for c in passing:
-            if tested >= heldout_candidates and any(x.accepted for x in passing[:tested]):
+    refinements: list[Refinement] = []
+    for sweep in (1, 2):
+        effects_before = cur.effects
+        while True:
+            masks = regimes(trace, cur)
+            windows = disagreement(trace, cur, sigma, masks)
+            step = Step(model_before=cur.model, rms_before=cur.rms, heldout_before=cur_held, windows=windows,
+                        regimes=regime_table(trace, cur, sigma, masks), candidates=[])
+            steps.append(step)
+            if cur.rms <= WITHIN_NOISE * sigma:
+                stop = f"the model reproduces the record within the noise (RMS error {cur.rms / sigma:.2f} x noise)"
                 break
-            tested += 1
-            # the first part of the record, fitted from the whole record's optimum (as the current
-            # model's part fit is: both sides start alike, and each converges to its own optimum
-            # of the first part)
-            new = c.fit.spec
-            pf = fit(part, new, c.fit.effects, [c.fit.params], sc_part)
-            c.part_fit = pf
-            c.heldout_rms = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
-            ok, why = heldout_verdict(sigma, cur_held, c.heldout_rms, cur.rms, c.rms)
-            c.accepted = ok
-            c.verdict = f"{c.verdict}; {why}"
-            say(f"  {c.effect}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was {cur_held / sigma:.2f})")
-        for c in passing[tested:]:
-            c.accepted = False
-            c.verdict += "; not tested on the held-out part (a better candidate was)"
-        results.sort(key=lambda c: (not c.accepted, c.bic_change))
-        step.candidates = results
-        if budget_hit[0]:
+            if len([s for s in steps if s.effect]) >= max_steps:
+                stop = f"stopped after {max_steps} added effects"
+                break
+            if deadline is not None and time.perf_counter() > deadline:
+                budget_hit[0] = True
+                stop = out_of_budget(f"before step {len(steps)}")
+                break
+            sig = signatures(trace, cur, sigma, masks)
+            todo = [(e, m) for e in candidates(trace) if e not in cur.effects for m in _models_for(cur.spec, e, trace)]
+            if not todo:
+                stop = "every effect the experiment can reveal is in the model"
+                break
+            results = []
+            for eff, new in todo:
+                fm = fit(trace, new, cur.effects + (eff,), candidate_starts(cur, new, sc), sc)
+                dk = fm.n_free - cur.n_free
+                bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
+                cr = CandidateResult(effect=eff, model=fm.model, added_parameters=dk, rms=fm.rms,
+                                     heldout_rms=float("nan"), bic_change=bic,
+                                     signature=float(sig.get(eff, {}).get("score", 0.0)),
+                                     signature_text=sig.get(eff, {}).get("text", ""), fit=fm)
+                if fm.ok:
+                    cr.accepted, cr.verdict = full_data_verdict(sigma, cur.rms, fm.rms, bic, dk)
+                else:
+                    cr.accepted, cr.verdict = False, f"the fit failed: {fm.message}"
+                say(f"  + {eff}: RMS error {fm.rms / sigma:.2f} x noise with {dk} more parameter{'s' if dk != 1 else ''} "
+                    f"({fm.seconds:.1f} s)")
+                results.append(cr)
+            # an effect with two laws (hysteresis in a load test: Bouc-Wen or Kawabata) competes with
+            # the better of them
+            best_of: dict[str, CandidateResult] = {}
             for c in results:
+                b = best_of.get(c.effect)
+                if b is None or (c.fit.ok and (not b.fit.ok or c.bic_change < b.bic_change)):
+                    best_of[c.effect] = c
+            results = list(best_of.values())
+            # the held-out test for the best few that pass on the whole record
+            passing = sorted([c for c in results if c.accepted], key=lambda c: c.bic_change)
+            tested = 0
+            for c in passing:
+                if tested >= heldout_candidates and any(x.accepted for x in passing[:tested]):
+                    break
+                tested += 1
+                # the first part of the record, fitted from the whole record's optimum (as the current
+                # model's part fit is: both sides start alike, and each converges to its own optimum
+                # of the first part)
+                new = c.fit.spec
+                pf = fit(part, new, c.fit.effects, [c.fit.params], sc_part)
+                c.part_fit = pf
+                c.heldout_rms = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
+                say(f"  {c.effect}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was {cur_held / sigma:.2f})")
+                if c.effect == "slack" and c.added_parameters == 0 and not regimes(trace, c.fit)["slack"][first:].any():
+                    # slack adds no parameter to overfit with, and a record that goes slack only in
+                    # its first part (a release from high up, decaying) leaves nothing for the
+                    # held-out part to judge: it is asked only where the measurement goes slack
+                    c.verdict += ("; held-out test not asked: the record goes slack only in the part the fit "
+                                  "sees, and slack adds no parameter")
+                    continue
+                ok, why = heldout_verdict(sigma, cur_held, c.heldout_rms, cur.rms, c.rms)
+                c.accepted = ok
+                c.verdict = f"{c.verdict}; {why}"
+            for c in passing[tested:]:
                 c.accepted = False
-                c.verdict += "; not judged to the end: the time budget ran out during this step"
-                c.fit = c.part_fit = None
-            stop = out_of_budget(f"while the candidates of step {len(steps)} were fitted")
-            break
-        win = results[0]
-        for c in results:
-            say(f"  {c.effect}: {'earns' if c.accepted and c is win else 'does not earn'} its parameters: {c.verdict}")
-        if not win.accepted:
-            stop = "no candidate earns its parameters"
+                c.verdict += "; not tested on the held-out part (a better candidate was)"
+            results.sort(key=lambda c: (not c.accepted, c.bic_change))
+            step.candidates = results
+            if budget_hit[0]:
+                for c in results:
+                    c.accepted = False
+                    c.verdict += "; not judged to the end: the time budget ran out during this step"
+                    c.fit = c.part_fit = None
+                stop = out_of_budget(f"while the candidates of step {len(steps)} were fitted")
+                break
+            win = results[0]
             for c in results:
-                c.fit = c.part_fit = None
-            break
-        step.effect = win.effect
-        step.evidence = _evidence(win, windows)
-        step.rms_after = win.rms
-        step.model_after = win.model
-        say(f"added {win.effect}: RMS error {cur.rms / sigma:.2f} -> {win.rms / sigma:.2f} x noise")
-        cur, cur_part, cur_held = win.fit, win.part_fit, win.heldout_rms
-        fits.append(cur)
-        for c in results:                       # fitted curves of the winner only
-            if c is not win:
-                c.fit = c.part_fit = None
-        # does an effect added earlier still earn its parameters next to the new one?
-        for e in [x for x in cur.effects if x not in base_effects and x != win.effect]:
-            red = _without(cur.spec, e).for_experiment(trace.experiment)
-            rf = fit(trace, red, tuple(x for x in cur.effects if x != e), _reduced_starts(cur, red, sc), sc)
-            if not rf.ok:
-                continue
-            bic = _bic(cur.rms, cur.n_free, n) - _bic(rf.rms, rf.n_free, n)
-            keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
-            if keep:
-                continue
-            say(f"removed {e}: without it the RMS error is {rf.rms / sigma:.2f} x noise ({why})")
-            removals.append(Removal(e, cur.model, rf.model, cur.rms, rf.rms,
-                                    f"next to {win.effect} it no longer earns its parameters: {why}"))
-            rp = fit(part, red, rf.effects, [rf.params], sc_part)
-            cur, cur_part = rf, rp
-            cur_held = _heldout(trace, red, rp.params, first) if rp.ok else float("inf")
+                say(f"  {c.effect}: {'earns' if c.accepted and c is win else 'does not earn'} its parameters: {c.verdict}")
+            if not win.accepted:
+                stop = "no candidate earns its parameters"
+                for c in results:
+                    c.fit = c.part_fit = None
+                break
+            step.effect = win.effect
+            step.evidence = _evidence(win, windows)
+            step.rms_after = win.rms
+            step.model_after = win.model
+            say(f"added {win.effect}: RMS error {cur.rms / sigma:.2f} -> {win.rms / sigma:.2f} x noise")
+            cur, cur_part, cur_held = win.fit, win.part_fit, win.heldout_rms
             fits.append(cur)
+            for c in results:                       # fitted curves of the winner only
+                if c is not win:
+                    c.fit = c.part_fit = None
+            # does an effect added earlier still earn its parameters next to the new one?
+            for e in [x for x in cur.effects if x not in base_effects and x != win.effect]:
+                red = _without(cur.spec, e).for_experiment(trace.experiment)
+                rf = fit(trace, red, tuple(x for x in cur.effects if x != e), _reduced_starts(cur, red, sc), sc)
+                if not rf.ok:
+                    continue
+                bic = _bic(cur.rms, cur.n_free, n) - _bic(rf.rms, rf.n_free, n)
+                keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
+                if keep:
+                    continue
+                say(f"removed {e}: without it the RMS error is {rf.rms / sigma:.2f} x noise ({why})")
+                removals.append(Removal(e, cur.model, rf.model, cur.rms, rf.rms,
+                                        f"next to {win.effect} it no longer earns its parameters: {why}"))
+                rp = fit(part, red, rf.effects, [rf.params], sc_part)
+                cur, cur_part = rf, rp
+                cur_held = _heldout(trace, red, rp.params, first) if rp.ok else float("inf")
+                fits.append(cur)
+                break
+        if budget_hit[0] or (sweep == 2 and cur.effects == effects_before):
             break
-    refinements = []
-    if not budget_hit[0]:
-        refined, _, refinements = refine_shapes(
+        refined, _, refs = refine_shapes(
             trace, part, first, cur, cur_held, sigma,
             lambda tr, sp, eff, starts, extra: fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra), sc,
             say)
+        refinements += refs
         if budget_hit[0]:
-            for r in refinements:
+            for r in refs:
                 if r.accepted:
                     r.accepted = False
                     r.verdict += "; not kept: the time budget ran out during this stage"
-            refined = cur
             stop += "; " + out_of_budget("while the shapes of the laws were refined")
-        if refined is not cur:
-            fits.append(refined)
+            break
+        if refined is cur:
+            break
+        fits.append(refined)
+        cur = refined
+        if sweep == 2 or cur.rms <= WITHIN_NOISE * sigma:
+            break
+        # a law of the wrong shape can hide a further effect behind its own misfit (a drag-damped
+        # record with slack was named nonlinear damping alone at 3-12 x noise): search once more
+        # from the refined model, its shape terms free in every fit
+        shape_free = tuple(k for r in refs if r.accepted for k in r.parameters)
+        cur_part = fit(part, cur.spec, cur.effects, [cur.params], sc_part)
+        cur_held = _heldout(trace, cur.spec, cur_part.params, first) if cur_part.ok else float("inf")
+        say(f"searching again from the refined model ({' '.join(shape_free)} free): RMS error "
+            f"{cur.rms / sigma:.2f} x noise")
     return Discovery(trace=trace, noise=noise, start_model=spec.canonical, fits=fits, steps=steps, stop_reason=stop,
                      seconds=time.perf_counter() - t_begin, heldout_start=float(trace.time[first]),
                      removals=removals, refinements=refinements)
