@@ -66,6 +66,14 @@ SHAPE_TERMS = {
 SHAPE_HELDOUT_INFORMATIVE = 3.0
 #: terms a shape refinement sets but does not fit
 SHAPE_HELD = ("c_table_dx",)
+#: terms a shape group replaces: held at 0 while it is fitted and after it is kept (the table of
+#: c(x) and the drag both stand for a damping growing with amplitude; freed together the fit of a
+#: Gaussian c(x) stopped at 2.0 x noise and its held-out prediction at 39 x)
+SHAPE_REPLACES = {"c_table_1": ("c_drag",)}
+
+
+def _replaced(group: Sequence[str]) -> tuple:
+    return tuple(r for g in group for r in SHAPE_REPLACES.get(g, ()))
 
 
 def _law_of(spec: ModelSpec, effect: str) -> str | None:
@@ -83,6 +91,7 @@ def _shape_start(params: dict, group: Sequence[str], sc: _Scales) -> dict:
     saturating damping fitted to 6.0 x noise that way, 1.9 x with the knots over the range), its
     values a tenth of c0."""
     p = dict(params)
+    p.update({r: 0.0 for r in _replaced(group)})
     if any(g.startswith("c_table_") for g in group):
         p["c_table_dx"] = sc.amp / DAMPING_TABLE_KNOTS
         for g in group:
@@ -441,14 +450,16 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
 
 def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Sequence[dict | None], sc: _Scales,
               quick_iterations: int = 12, time_cap: float | None = None, extra: Sequence[str] = (),
-              **options) -> ModelFit:
+              held: Sequence[str] = (), **options) -> ModelFit:
     """Fit ``spec`` from each start (a few iterations each when there are several; None = tether.fit's
     data-based estimate), then carry the best to convergence. ``best_start`` of the result is the
-    index of the start that won. ``extra`` frees shape terms beyond free_parameters."""
+    index of the start that won. ``extra`` frees shape terms beyond free_parameters; ``held`` keeps
+    terms at their start values."""
     t0 = time.perf_counter()
     spec = spec.for_experiment(trace.experiment)
     names = free_parameters(spec, trace.experiment)
     names += [e for e in extra if e not in names]
+    names = [e for e in names if e not in held]
     evaluations = 0
     best, best_i, msg = None, -1, ""
     if len(starts) > 1:
@@ -1203,10 +1214,12 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     cap = max(5.0, 2000.0 * t_sim)
 
     shape_free: tuple = ()        # shape terms a refinement freed, kept free in every later fit
+    shape_held: tuple = ()        # and the terms they replace, held (at 0) in every later fit
 
-    def fit(tr, sp, eff, starts, scales, extra=()):
+    def fit(tr, sp, eff, starts, scales, extra=(), held=()):
         extra = tuple(extra) + tuple(k for k in shape_free if k not in extra and k in sp.parameters)
-        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap, extra=extra, deadline=deadline)
+        held = tuple(held) + shape_held
+        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap, extra=extra, held=held, deadline=deadline)
         if deadline is not None and time.perf_counter() > deadline:
             budget_hit[0] = True          # this fit may have been cut short: it cannot judge
         return r
@@ -1347,7 +1360,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             break
         refined, _, refs = refine_shapes(
             trace, part, first, cur, cur_held, sigma,
-            lambda tr, sp, eff, starts, extra: fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra), sc,
+            lambda tr, sp, eff, starts, extra: fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra,
+                                                   held=_replaced(extra)), sc,
             say)
         refinements += refs
         if budget_hit[0]:
@@ -1367,6 +1381,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         # record with slack was named nonlinear damping alone at 3-12 x noise): search once more
         # from the refined model, its shape terms free in every fit
         shape_free = tuple(k for r in refs if r.accepted for k in r.parameters)
+        shape_held = _replaced(shape_free)
         cur_part = fit(part, cur.spec, cur.effects, [cur.params], sc_part)
         cur_held = _heldout(trace, cur.spec, cur_part.params, first) if cur_part.ok else float("inf")
         say(f"searching again from the refined model ({' '.join(shape_free)} free): RMS error "
