@@ -259,7 +259,8 @@ def test_a_step_cut_short_by_the_budget_is_not_taken(tmp_path, monkeypatch):
 
     stem, _ = _write(tmp_path, "t", "free_vibration", {"nonlinear_stiffness"}, 5, noise=1e-4, rate=100.0)
     clock = {"offset": 0.0}
-    monkeypatch.setattr(D, "time", types.SimpleNamespace(perf_counter=lambda: real_time.perf_counter() + clock["offset"]))
+    monkeypatch.setattr(D, "time", types.SimpleNamespace(perf_counter=lambda: real_time.perf_counter() + clock["offset"],
+                                                         process_time=real_time.process_time))
     original = D.fit_model
 
     def fit_model(trace, spec, effects, *a, **kw):

@@ -352,9 +352,10 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
               **options):
     """One fit through tether.fit.fit_traces; on a failure of its staging (a log-scaled parameter
     driven to 0 by the first stage) one direct engine fit of all free parameters instead. A fit
-    that runs past ``time_cap`` seconds (a start that wandered where the equations turn stiff and
-    every simulation crawls), or past the discovery's ``deadline`` (a time.perf_counter() value),
-    is abandoned."""
+    that runs past ``time_cap`` seconds of this process's CPU time (a start that wandered where the
+    equations turn stiff and every simulation crawls; CPU time, so that other work on the machine
+    does not change which fits finish), or past the discovery's ``deadline`` (a time.perf_counter()
+    value, wall time: the user's budget), is abandoned."""
     from .fit import fit_traces
 
     st = None if start is None else _clean_start(names, start, sc)
@@ -362,14 +363,14 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
     held = {k: float(start[k]) for k in SHAPE_HELD if start and k in start and k not in names
             and k in spec.parameters}
     options = {**ENGINE_OPTIONS, **options}
-    t0 = time.perf_counter()
+    t0 = time.process_time()
 
-    if deadline is not None and t0 >= deadline:
+    if deadline is not None and time.perf_counter() >= deadline:
         return None, OUT_OF_BUDGET
 
     def watch(_p):
         now = time.perf_counter()
-        if time_cap is not None and now - t0 > time_cap:
+        if time_cap is not None and time.process_time() - t0 > time_cap:
             raise _OutOfTime(f"abandoned after {time_cap:.0f} s")
         if deadline is not None and now > deadline:
             raise _OutOfTime(OUT_OF_BUDGET)
@@ -1208,9 +1209,9 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     cur = fit_model(trace, spec, base_effects, [None], sc)
     if not cur.ok:
         raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
-    t_sim = time.perf_counter()
+    t_sim = time.process_time()          # CPU time, as the caps are counted
     predict(trace, cur.spec, cur.params)
-    t_sim = time.perf_counter() - t_sim
+    t_sim = time.process_time() - t_sim
     cap = max(5.0, 2000.0 * t_sim)
 
     shape_free: tuple = ()        # shape terms a refinement freed, kept free in every later fit
