@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -244,3 +245,94 @@ def test_periodic_steady_state_equals_a_long_run_from_rest():
     assert amp > 1e-3
     assert np.max(np.abs(x - xl[-P * periods:])) <= 1e-8 * amp
     assert np.max(np.abs(x[:P] - x[P:])) <= 1e-8 * amp   # the record is periodic
+
+
+# ---- the Bouc-Wen law along a prescribed path (equation-error estimates) -------------------------
+def _bouc_wen_path_reference(x, A, beta, gamma, periodic):
+    """A second implementation (pure Python, the one the estimate used before the engine had it)."""
+    xs = [float(v) for v in x]
+    n = len(xs)
+    dx = [xs[i + 1] - xs[i] for i in range(n - 1)] + [(xs[0] - xs[-1]) if periodic else 0.0]
+    out, z = [0.0] * n, 0.0
+    for _ in range(2 if periodic else 1):
+        for i in range(n):
+            out[i] = z
+            d = dx[i]
+            if d == 0.0:
+                continue
+            psi = gamma + beta if d * z > 0 else gamma - beta
+            lam = psi if z >= 0 else -psi
+            e = lam * d
+            if abs(e) < 1e-8 or e <= -50.0:
+                z = z + (A - lam * z) * d
+            else:
+                z = A / lam + (z - A / lam) * np.exp(-e)
+            if not np.isfinite(z) or abs(z) > 1e12:
+                z = float(np.copysign(1e12, z if np.isfinite(z) else 1.0))
+    return np.asarray(out)
+
+
+def test_bouc_wen_path_follows_the_closed_form_of_loading_and_unloading():
+    # dz/dx = A - (gamma + beta) z while loading from z = 0, A - (gamma - beta) z while unloading
+    # with z > 0: z = A/psi (1 - exp(-psi x)) up, then from z_top towards A/(gamma - beta) (until z = 0)
+    A, beta, gamma, X = 2000.0, 300.0, 100.0, 0.01
+    up = np.linspace(0.0, X, 20001)
+    down = np.linspace(X, 0.004, 12001)[1:]
+    z = idn.bouc_wen_path(np.concatenate([up, down]), A, beta, gamma)
+    psi_up, psi_down = gamma + beta, gamma - beta
+    z_up = A / psi_up * (1 - np.exp(-psi_up * up))
+    z_top = z_up[-1]
+    z_down = A / psi_down + (z_top - A / psi_down) * np.exp(-psi_down * (down - X))
+    scale = A / psi_up
+    # only the first step (from z = 0, where the sign of z is not yet set) deviates, by O(dx)
+    assert np.max(np.abs(z[:len(up)] - z_up)) < 1e-6 * scale
+    pos = z_down > 0                         # the law changes where z changes sign
+    assert 0.3 < pos.mean() < 1.0
+    assert np.max(np.abs(z[len(up):][pos] - z_down[pos])) < 1e-6 * scale
+    assert z_top > 0.95 * scale             # the loop saturates near A / (beta + gamma)
+
+
+def test_bouc_wen_path_equals_a_second_implementation_on_random_paths():
+    rng = np.random.default_rng(7)
+    for trial in range(6):
+        n = 400 + 37 * trial
+        x = np.cumsum(rng.normal(0, 1e-3, n)) + 0.01 * np.sin(np.linspace(0, 6 * np.pi, n))
+        A, beta, gamma = 1000 * rng.uniform(0.1, 2), rng.uniform(-500, 500), rng.uniform(-500, 500)
+        for periodic in (False, True):
+            ours = idn.bouc_wen_path(x, A, beta, gamma, periodic)
+            ref = _bouc_wen_path_reference(x, A, beta, gamma, periodic)
+            assert np.allclose(ours, ref, rtol=1e-12, atol=1e-12 * max(1.0, np.max(np.abs(ref))))
+    with pytest.raises(ValueError, match="non-empty"):
+        idn.bouc_wen_path(np.zeros(0), 1.0, 1.0, 1.0)
+
+
+# ---- deadlines: a fit stops inside an iteration, not only between them ---------------------------
+def test_a_cpu_deadline_stops_the_fit_inside_its_first_iteration():
+    # the full model on a long record at the FMU's exact step sequence (stride 1): one iteration
+    # (a Jacobian of 9 columns) costs far more than the deadline
+    e = _synthetic(dict(FULL, x0=-0.1184), TRUTH_FULL, 20001, 1e-3, seed=8)
+    free = _free(TRUTH_FULL, {"a1": 1.05, "bw_A": 0.9})
+    calls = []
+    c0 = time.process_time()
+    sim = idn.simulate(e, {n: v[2] for n, v in free.items()})
+    one = time.process_time() - c0
+    assert np.all(np.isfinite(sim))
+    limit = 2 * one                            # the start's simulation fits, its Jacobian does not
+    c0 = time.process_time()
+    with pytest.raises(RuntimeError, match="CPU-time deadline passed"):
+        idn.fit([e], free, progress=lambda *a: calls.append(a), **idn.deadlines(cpu_seconds=limit))
+    spent = time.process_time() - c0
+    assert calls == []                         # stopped before the first iteration ended
+    # the overrun is at most a few samples' work per thread, far below one more simulation each
+    assert spent < limit + 2 * one, (spent, limit, one)
+
+
+def test_a_passed_wall_deadline_stops_the_fit_before_it_simulates():
+    e = _synthetic(dict(SIMPLE, x0=-0.1669), TRUTH_SIMPLE, 2001, 2e-4, seed=9)
+    free = _free(TRUTH_SIMPLE, {"a1": 1.1})
+    with pytest.raises(RuntimeError, match="wall-time deadline passed"):
+        idn.fit([e], free, deadline_monotonic=time.clock_gettime(time.CLOCK_MONOTONIC) - 1.0)
+    # and a deadline far away changes nothing: the same result, bit for bit
+    a = idn.fit([e], free, output_stride=20)
+    b = idn.fit([e], free, output_stride=20, **idn.deadlines(wall_seconds=3600, cpu_seconds=3600))
+    assert np.array_equal(a.values, b.values) and a.evaluations == b.evaluations

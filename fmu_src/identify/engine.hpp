@@ -2,6 +2,7 @@
 #ifndef KT_IDENTIFY_ENGINE_HPP
 #define KT_IDENTIFY_ENGINE_HPP
 
+#include <atomic>
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -29,6 +30,16 @@ double get_parameter(const tether_model &M, int index);
 // offset of a double field of tether_outputs for an output variable name; false if unknown
 bool output_offset(const char *name, std::size_t &offset);
 
+// Deadlines of a fit (kt_fit_options.deadline_*): a simulation checks them as it goes and fails
+// with the error below once one has passed; `hit` says which did (1 wall, 2 CPU), for the message.
+struct Limits {
+    double monotonic = 0, cpu = 0; // clock readings in seconds, 0 = none
+    mutable std::atomic<int> hit{0};
+    bool any() const { return monotonic > 0 || cpu > 0; }
+    bool expired() const;          // reads the clocks; sets hit
+    std::string message() const;
+};
+
 // An experiment ready to run: the model with the experiment's settings, the output offsets.
 struct Prepared {
     const kt_experiment *e = nullptr;
@@ -38,6 +49,7 @@ struct Prepared {
     // samples per integrator call and fill the samples between by cubic Hermite interpolation of
     // the states (a chunk with a discrete event is redone sample by sample)
     int stride = 1;
+    const Limits *limits = nullptr; // checked during the simulation (NULL = none)
 };
 bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prepared &p, std::string &err);
 

@@ -46,6 +46,9 @@ struct Problem {
     int n_res = 0;
     double rtol_override = 0;
     int n_threads = 1;
+    const kt::Limits *limits = nullptr; // deadlines (NULL = none)
+
+    bool out_of_time() const { return limits && limits->hit.load() != 0; }
 
     double to_p(int j, double th) const { return log_scale[j] ? sign[j] * std::exp(th) : scale[j] * th; }
     double dp_dtheta(int j, double th) const { return log_scale[j] ? sign[j] * std::exp(th) : scale[j]; }
@@ -154,7 +157,12 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
     std::string err;
     VectorXd th = clip(P, th0), r;
     ++C.evaluations;
-    if (!P.residuals(th, r, err)) { R.message = "the start fails to simulate: " + err; return R; }
+    if (P.limits && P.limits->expired()) { R.status = -2; R.message = P.limits->message(); return R; }
+    if (!P.residuals(th, r, err)) {
+        if (P.out_of_time()) { R.status = -2; R.message = P.limits->message(); return R; }
+        R.message = "the start fails to simulate: " + err;
+        return R;
+    }
     double cost = 0.5 * r.squaredNorm();
     C.history.push_back(cost);
     double lambda = 1e-3, nu = 2.0;
@@ -165,8 +173,8 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
     for (int it = 0; it < o.max_iterations; ++it) {
         ++C.iterations;
         if (need_jacobian && !jacobian(P, th, r, o.fd_step, o.central_differences != 0, J, C)) {
-            R.status = -1;
-            R.message = "a Jacobian column failed to simulate";
+            R.status = P.out_of_time() ? -2 : -1;
+            R.message = P.out_of_time() ? P.limits->message() : "a Jacobian column failed to simulate";
             break;
         }
         need_jacobian = false;
@@ -202,6 +210,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
             if (small) { converged = true; R.message = "step small"; break; }
             P.batch(cand, rs, oks);
             C.evaluations += (long)cand.size();
+            if (P.out_of_time()) break;
             int best = -1;
             double cn = cost;
             for (int c = 0; c < (int)cand.size(); ++c) {
@@ -237,6 +246,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
             nu *= 2.0;
             if (lambda > 1e16) { converged = true; R.message = "no decrease found (lambda at its limit)"; break; }
         }
+        if (P.out_of_time()) { R.status = -2; R.message = P.limits->message(); break; }
         if (o.verbose)
             std::fprintf(stderr, "[kt_fit] start %d it %d cost %.6e lambda %.2e evals %ld\n", start_no, it, cost, lambda,
                          C.evaluations);
@@ -305,6 +315,10 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
 
         Problem P;
         P.n_threads = o.n_threads;
+        kt::Limits limits;
+        limits.monotonic = o.deadline_monotonic > 0 ? o.deadline_monotonic : 0.0;
+        limits.cpu = o.deadline_cpu > 0 ? o.deadline_cpu : 0.0;
+        if (limits.any()) P.limits = &limits;
         P.rtol_override = o.rtol;
         P.exps.resize((std::size_t)n_exp);
         for (int i = 0; i < n_exp; ++i) {
@@ -315,6 +329,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
                 return -1;
             }
             P.exps[(std::size_t)i].stride = std::max(1, o.output_stride);
+            P.exps[(std::size_t)i].limits = P.limits;
             P.n_res += experiments[i].n;
         }
         // horizon stages: the same problem on the first part of each non-periodic record
@@ -409,7 +424,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         // statistics at the optimum: a fresh Jacobian there
         MatrixXd J;
         if (!jacobian(P, best.th, best.r, o.fd_step, o.central_differences != 0, J, C)) {
-            err = "kt_fit: the Jacobian at the optimum failed to simulate";
+            err = P.out_of_time() ? "kt_fit: " + P.limits->message() : "kt_fit: the Jacobian at the optimum failed to simulate";
             return -1;
         }
         const int N = P.n_res, dof = N - k;

@@ -62,4 +62,12 @@ int kt_simulate(const kt_experiment *e, int n_par, const char *const *names, con
     return kt_simulate_outputs(e, n_par, names, values, 0, nullptr, out);
 }
 
+int kt_bouc_wen_path(double A, double beta, double gamma, const double *x, int n, int periodic, double *z)
+{
+    kt::last_error.clear();
+    if (!x || !z || n < 1) { kt::last_error = "kt_bouc_wen_path: need n >= 1 samples and x, z not NULL"; return -1; }
+    boucwen_path(A, beta, gamma, x, n, periodic, z);
+    return 0;
+}
+
 } // extern "C"

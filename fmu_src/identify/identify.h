@@ -26,7 +26,7 @@ extern "C" {
 #define KT_API
 #endif
 
-#define KT_IDENTIFY_API_VERSION 1
+#define KT_IDENTIFY_API_VERSION 3
 
 /* ---- parameter table ------------------------------------------------------------------------ */
 #define KT_PAR_REAL 0   /* a Real parameter: a double field of tether_params */
@@ -88,6 +88,11 @@ KT_API int kt_simulate_outputs(const kt_experiment *e, int n_par, const char *co
                                int n_out, const char *const *outputs, double *out);
 KT_API const char *kt_last_error(void);
 
+/* z of the Bouc-Wen law (n = 1) along the displacement path x[0..n-1] (physics/laws.h,
+ * boucwen_path): the hysteretic force an equation-error estimate of (A, beta, gamma) needs.
+ * Returns 0, or -1 with kt_last_error() for a bad argument. */
+KT_API int kt_bouc_wen_path(double A, double beta, double gamma, const double *x, int n, int periodic, double *z);
+
 /* ---- fitting -------------------------------------------------------------------------------- */
 #define KT_SCALE_AUTO 0   /* log if the bounds (or the start) keep one sign, else linear */
 #define KT_SCALE_LOG 1    /* theta = log|p| (the bounds must not contain 0) */
@@ -130,6 +135,12 @@ typedef struct {
     int verbose;             /* 1: progress lines on stderr */
     kt_progress_fn progress; /* called after every LM iteration (NULL = none); nonzero stops the fit */
     void *progress_ctx;
+    /* Deadlines, as readings of POSIX clocks in seconds (0 = none): the fit stops, with kt_fit
+     * returning -1 and kt_last_error() "kt_fit: stopped: the wall-time deadline passed" (or
+     * "CPU-time"), as soon as one passes, checked inside every simulation as well as between
+     * iterations (an iteration whose simulations crawl can take far longer than the deadline). */
+    double deadline_monotonic; /* CLOCK_MONOTONIC */
+    double deadline_cpu;       /* CLOCK_PROCESS_CPUTIME_ID (this process, all threads) */
 } kt_fit_options;
 
 KT_API void kt_fit_default_options(kt_fit_options *o);

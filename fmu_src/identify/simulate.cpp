@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <time.h>
+
 #include "identify/engine.hpp"
 
 extern "C" {
@@ -193,8 +195,35 @@ bool set_input(tether_model &M, const kt_experiment &e, int k, double t)
 
 } // namespace
 
+static double clock_seconds(clockid_t id)
+{
+    struct timespec ts;
+    if (clock_gettime(id, &ts) != 0) return 0.0;
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+bool Limits::expired() const
+{
+    if (hit.load()) return true;
+    if (monotonic > 0 && clock_seconds(CLOCK_MONOTONIC) > monotonic) { hit = 1; return true; }
+    if (cpu > 0 && clock_seconds(CLOCK_PROCESS_CPUTIME_ID) > cpu) { hit = 2; return true; }
+    return false;
+}
+
+std::string Limits::message() const
+{
+    return hit.load() == 2 ? "stopped: the CPU-time deadline passed" : "stopped: the wall-time deadline passed";
+}
+
 bool simulate(const Prepared &p, const tether_model &M0, double *out, std::string &err)
 {
+    // deadlines: read the clocks every few samples (a reading costs about a microsecond)
+    unsigned long polls = 0;
+    auto over_time = [&](unsigned every) -> bool {
+        if (!p.limits || (++polls % every) != 0 || !p.limits->expired()) return false;
+        err = p.limits->message();
+        return true;
+    };
     const kt_experiment &e = *p.e;
     tether_model M = M0; // by value: the integrator reads it through a pointer
     const int n = e.n;
@@ -230,6 +259,7 @@ bool simulate(const Prepared &p, const tether_model &M0, double *out, std::strin
 
     // one step: the inputs of sample s, the outputs there, then fmi2DoStep to sample s + 1
     auto step = [&](double *o, bool last) -> bool {
+        if (over_time(16)) return false;
         if (s > 0 && has_input && set_input(M, e, input_index(s), t)) needs_reset = true;
         if (o) {
             tether_outputs to;
@@ -335,6 +365,7 @@ bool simulate(const Prepared &p, const tether_model &M0, double *out, std::strin
     constexpr int NS = TETHER_NUMBER_OF_STATES;
     int k = 0;
     while (k < n - 1) {
+        if (over_time(1)) return false;
         const int k2 = std::min(n - 1, k + stride);
         if (needs_reset) {
             tether_event_update(&M, t, y, msg, sizeof msg);

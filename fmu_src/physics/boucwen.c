@@ -15,3 +15,25 @@ double boucwen_rate(const tether_params *p, double x, double xdot, double z)
     const double zn = p->bw_n == 1.0 ? fabs(z) : pow(fabs(z), p->bw_n);
     return xdot * (p->bw_A - zn * psi);
 }
+
+void boucwen_path(double A, double beta, double gamma, const double *x, int n, int periodic, double *z)
+{
+    double zk = 0.0;
+    for (int pass = 0; pass < (periodic ? 2 : 1); ++pass) {
+        for (int i = 0; i < n; ++i) {
+            z[i] = zk;
+            const double d = i + 1 < n ? x[i + 1] - x[i] : (periodic ? x[0] - x[n - 1] : 0.0);
+            if (d == 0.0) continue;
+            const double psi = d * zk > 0.0 ? gamma + beta : gamma - beta;
+            const double lam = zk >= 0.0 ? psi : -psi; /* dz/dx = A - lam z */
+            const double e = lam * d;
+            if (fabs(e) < 1e-8 || e <= -50.0)
+                zk += (A - lam * zk) * d; /* nearly linear, or a runaway: one explicit step */
+            else {
+                const double zs = A / lam;
+                zk = zs + (zk - zs) * exp(-e);
+            }
+            if (!isfinite(zk) || fabs(zk) > 1e12) zk = copysign(1e12, isfinite(zk) ? zk : 1.0);
+        }
+    }
+}

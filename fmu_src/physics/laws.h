@@ -67,6 +67,13 @@ void kawabata_rejoin(kawabata_memory *mem);
  * The force scale is fixed to 1 (z is the hysteretic force in newtons), which removes the
  * redundancy among (A, beta, gamma, scale). */
 double boucwen_rate(const tether_params *p, double x, double xdot, double z);
+/* z of the classic law with n = 1 (dz/dx = A - |z| (gamma + beta sgn(dx z))) along a prescribed
+ * displacement path x[0..n-1], starting from z = 0: between two samples the sign of z and of dx
+ * are fixed, so the law is linear in x and is integrated exactly (z[k] is z at x[k]). periodic:
+ * the path is closed (x[n-1] -> x[0]) and is run twice, the second pass kept. A runaway (the
+ * law hardening without bound) stops growing at |z| = 1e12. Used to estimate (A, beta, gamma)
+ * from a measured path by equation error. */
+void boucwen_path(double A, double beta, double gamma, const double *x, int n, int periodic, double *z);
 
 /* ---- creep (paper: three stages; the law is ours) ----------------------------------------- */
 #define CREEP_KELVIN_CELLS 3

@@ -336,10 +336,6 @@ def _truncated(trace: Trace, fraction: float) -> Trace:
     return part
 
 
-class _OutOfTime(Exception):
-    pass
-
-
 #: the default bound of one discovery run [s]
 DEFAULT_BUDGET = 900.0
 
@@ -355,7 +351,9 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
     that runs past ``time_cap`` seconds of this process's CPU time (a start that wandered where the
     equations turn stiff and every simulation crawls; CPU time, so that other work on the machine
     does not change which fits finish), or past the discovery's ``deadline`` (a time.perf_counter()
-    value, wall time: the user's budget), is abandoned."""
+    value, wall time: the user's budget), is abandoned: the engine checks both inside its
+    simulations, so neither is overrun by more than a few samples' work."""
+    from . import identify_native as idn
     from .fit import fit_traces
 
     st = None if start is None else _clean_start(names, start, sc)
@@ -363,27 +361,27 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
     held = {k: float(start[k]) for k in SHAPE_HELD if start and k in start and k not in names
             and k in spec.parameters}
     options = {**ENGINE_OPTIONS, **options}
-    t0 = time.process_time()
-
     if deadline is not None and time.perf_counter() >= deadline:
         return None, OUT_OF_BUDGET
+    options.update(idn.deadlines(wall_seconds=None if deadline is None else deadline - time.perf_counter(),
+                                 cpu_seconds=time_cap))
 
-    def watch(_p):
-        now = time.perf_counter()
-        if time_cap is not None and time.process_time() - t0 > time_cap:
-            raise _OutOfTime(f"abandoned after {time_cap:.0f} s")
-        if deadline is not None and now > deadline:
-            raise _OutOfTime(OUT_OF_BUDGET)
+    def stopped(msg: str) -> str | None:
+        if "wall-time deadline passed" in msg:
+            return OUT_OF_BUDGET
+        if "CPU-time deadline passed" in msg:
+            return f"abandoned after {time_cap:.0f} s"
+        return None
 
     iterations = int(options.pop("max_iterations", 100))
     while True:
         try:
-            return fit_traces([trace], spec, free=names, start=st, fixed=held or None, progress=watch,
+            return fit_traces([trace], spec, free=names, start=st, fixed=held or None,
                               max_iterations=iterations, **options), ""
-        except _OutOfTime as exc:
-            return None, str(exc)
         except (RuntimeError, ValueError) as exc:
             msg = " ".join(str(exc).split())
+        if stopped(msg):
+            return None, stopped(msg)
         # the engine drops a whole fit when a Jacobian column fails to simulate late in it (the
         # iterate wandered where the solver gives up): stop earlier, keeping the progress made
         if "failed to simulate" in msg and "start fails" not in msg and iterations > 2:
@@ -395,7 +393,8 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
     try:
         return _fit_direct(trace, spec, names, st, held, **options), ""
     except (RuntimeError, ValueError) as exc:
-        return None, " ".join(str(exc).split())
+        msg = " ".join(str(exc).split())
+        return None, stopped(msg) or msg
 
 
 @dataclass

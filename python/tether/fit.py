@@ -304,32 +304,9 @@ def _kinematics(trace: Trace, f_dom: float) -> _Kinematics:
 # Bouc-Wen force along a measured path
 def _bw_path(x: Sequence[float], A: float, beta: float, gamma: float, periodic: bool) -> np.ndarray:
     """z along the path x (n = 1): dz/dx = A - |z| (gamma + beta sgn(dx z)), integrated exactly
-    sample to sample for a fixed sign of z (a linear ODE in x). Periodic: two passes, the second kept."""
-    xs = [float(v) for v in x]
-    n = len(xs)
-    dx = [xs[i + 1] - xs[i] for i in range(n - 1)] + [(xs[0] - xs[-1]) if periodic else 0.0]
-    out = [0.0] * n
-    z = 0.0
-    exp = math.exp
-    for _ in range(2 if periodic else 1):
-        for i in range(n):
-            out[i] = z
-            d = dx[i]
-            if d == 0.0:
-                continue
-            psi = gamma + beta if d * z > 0 else gamma - beta
-            lam = psi if z >= 0 else -psi          # dz/dx = A - lam z
-            e = lam * d
-            if abs(e) < 1e-8:
-                z = z + (A - lam * z) * d
-            elif e > -50.0:
-                zs = A / lam
-                z = zs + (z - zs) * exp(-e)
-            else:                                   # runaway (hardening without bound): stop growing
-                z = z + (A - lam * z) * d
-            if not math.isfinite(z) or abs(z) > 1e12:
-                z = math.copysign(1e12, z if math.isfinite(z) else 1.0)
-    return np.asarray(out)
+    sample to sample for a fixed sign of z (a linear ODE in x). Periodic: two passes, the second kept.
+    The loop runs in the engine (physics/boucwen.c): an estimate calls it hundreds of times."""
+    return idn.bouc_wen_path(x, A, beta, gamma, periodic)
 
 
 # ---------------------------------------------------------------------------------------------

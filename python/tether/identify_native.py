@@ -22,10 +22,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["Experiment", "FitResult", "PROGRESS", "experiment_from_trace", "library", "parameter_names", "parameter_start", "simulate", "fit",
+__all__ = ["Experiment", "FitResult", "PROGRESS", "experiment_from_trace", "library", "parameter_names", "parameter_start", "simulate", "fit", "deadlines", "bouc_wen_path",
            "spline_derivatives", "INPUT_NONE", "INPUT_FORCE", "INPUT_LOAD"]
 
 INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
+#: the engine's KT_IDENTIFY_API_VERSION this binding is written for
+API_VERSION = 3
 SCALE = {"auto": 0, "log": 1, "linear": 2}
 
 _REPO = Path(__file__).resolve().parents[2]
@@ -51,6 +53,7 @@ class _Options(C.Structure):
         ("singular_rel_tol", C.c_double), ("max_rel_std", C.c_double), ("stat_tol", C.c_double),
         ("output_stride", C.c_int), ("horizon_stages", C.c_int), ("verbose", C.c_int),
         ("progress", C.c_void_p), ("progress_ctx", C.c_void_p),
+        ("deadline_monotonic", C.c_double), ("deadline_cpu", C.c_double),
     ]
 
 
@@ -109,8 +112,10 @@ def library() -> C.CDLL:
     lib.kt_fit_default_options.argtypes = [C.POINTER(_Options)]
     lib.kt_fit.argtypes = [C.POINTER(_Experiment), C.c_int, C.c_int, C.POINTER(C.c_char_p), _DP, _DP, _DP, _IP,
                            C.POINTER(_Options), C.POINTER(_Result)]
-    if lib.kt_api_version() != 1:
-        raise RuntimeError(f"{path}: API version {lib.kt_api_version()}, this binding expects 1")
+    lib.kt_bouc_wen_path.argtypes = [C.c_double, C.c_double, C.c_double, _DP, C.c_int, C.c_int, _DP]
+    if lib.kt_api_version() != API_VERSION:
+        raise RuntimeError(f"{path}: API version {lib.kt_api_version()}, this binding expects {API_VERSION} "
+                           "(rebuild it with `cmake --build build`)")
     _lib = lib
     return lib
 
@@ -138,6 +143,20 @@ def _dbl(a: np.ndarray | None):
 def _names(names: Sequence[str]):
     arr = (C.c_char_p * max(1, len(names)))(*[n.encode() for n in names])
     return arr
+
+
+def bouc_wen_path(x, A: float, beta: float, gamma: float, periodic: bool = False) -> np.ndarray:
+    """z of the Bouc-Wen law with n = 1, dz/dx = A - |z| (gamma + beta sgn(dx z)), along the
+    displacement path x from z = 0, integrated exactly between samples (physics/boucwen.c,
+    boucwen_path). periodic: the path is closed and run twice, the second pass returned."""
+    xs = np.ascontiguousarray(x, dtype=float)
+    if xs.ndim != 1 or len(xs) < 1:
+        raise ValueError(f"bouc_wen_path: x must be a non-empty 1-D array, got shape {xs.shape}")
+    z = np.empty_like(xs)
+    if library().kt_bouc_wen_path(float(A), float(beta), float(gamma), _dbl(xs), len(xs), int(bool(periodic)),
+                                  _dbl(z)) != 0:
+        raise ValueError(library().kt_last_error().decode())
+    return z
 
 
 def spline_derivatives(time: np.ndarray, values: np.ndarray, periodic: bool = False) -> np.ndarray:
@@ -285,13 +304,29 @@ class FitResult:
         return dict(zip(self.names, map(float, self.values)))
 
 
+def deadlines(wall_seconds: float | None = None, cpu_seconds: float | None = None) -> dict:
+    """Options for :func:`fit` that stop it ``wall_seconds`` of wall time or ``cpu_seconds`` of
+    this process's CPU time (all threads) from now; None = no such limit."""
+    import time
+
+    out = {}
+    if wall_seconds is not None:
+        out["deadline_monotonic"] = time.clock_gettime(time.CLOCK_MONOTONIC) + max(float(wall_seconds), 1e-9)
+    if cpu_seconds is not None:
+        out["deadline_cpu"] = time.clock_gettime(time.CLOCK_PROCESS_CPUTIME_ID) + max(float(cpu_seconds), 1e-9)
+    return out
+
+
 def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling: Mapping[str, str] | None = None,
         **options) -> FitResult:
     """Fit the free parameters (name -> (lower, upper, start)) to all experiments jointly.
 
     options: any field of kt_fit_options (max_iterations, ftol, xtol, gtol, fd_step,
     central_differences, n_starts, start_spread, seed, n_threads, rtol, singular_rel_tol,
-    max_rel_std, stat_tol, output_stride, horizon_stages, verbose, and
+    max_rel_std, stat_tol, output_stride, horizon_stages, verbose, deadline_monotonic and
+    deadline_cpu (readings of time.CLOCK_MONOTONIC and time.CLOCK_PROCESS_CPUTIME_ID, see
+    :func:`deadlines`; the fit raises RuntimeError "kt_fit: stopped: the ... deadline passed" once
+    one passes, even inside an iteration), and
     ``progress``: a callable f(start, stage, n_stages, iteration, cost, evaluations) called after
     every LM iteration; a true return value stops the fit (RuntimeError), an exception it raises
     stops the fit and is raised again here."""
