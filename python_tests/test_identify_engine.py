@@ -336,3 +336,26 @@ def test_a_passed_wall_deadline_stops_the_fit_before_it_simulates():
     a = idn.fit([e], free, output_stride=20)
     b = idn.fit([e], free, output_stride=20, **idn.deadlines(wall_seconds=3600, cpu_seconds=3600))
     assert np.array_equal(a.values, b.values) and a.evaluations == b.evaluations
+
+
+def test_a_cubic_that_turns_down_at_once_is_refused_not_searched_for_ever():
+    # an iterate of a discovery fit: a1 = 2.4e-153 against a2 = -3.8e8, a3 = -1.3e9 (the law's
+    # maximum at strain 3e-162 carries no weight). The balance search lost that root to
+    # cancellation and hung in fmi2ExitInitializationMode / the engine; run in a child with a
+    # timeout so that a regression fails instead of hanging the suite
+    import subprocess
+
+    code = (
+        "import sys; sys.path.insert(0, %r)\n"
+        "import numpy as np\n"
+        "from tether import identify_native as idn\n"
+        "e = idn.Experiment(np.linspace(0, 1, 11), settings=dict(rig=2, stiffness=2, m=5.09, g=9.81, L0=12.0),"
+        " measured=np.zeros(11))\n"
+        "try:\n"
+        "    idn.simulate(e, dict(a1=2.4362802596204755e-153, a2=-380659340.83380359, a3=-1329625219.2758133))\n"
+        "except RuntimeError as exc:\n"
+        "    print('refused:', exc)\n"
+    ) % str(REPO / "python")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert "refused:" in p.stdout and "exceeds the largest tension" in p.stdout, p.stdout

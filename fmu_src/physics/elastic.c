@@ -2,6 +2,7 @@
  * F(eps) = a1 eps + a2 eps^2 + a3 eps^3, one law for every length (the paper fits 3 lengths and
  * predicts the 8 m tether from it). In elongation x of a tether of length L0 it reads
  * F = (a1/L0) x + (a2/L0^2) x^2 + (a3/L0^3) x^3. */
+#include <float.h>
 #include <math.h>
 
 #include "physics/laws.h"
@@ -33,9 +34,11 @@ static void stiffness_roots(const tether_params *p, double *below, double *above
     } else {
         const double disc = b * b - 4.0 * a * c;
         if (disc >= 0.0) {
-            const double s = sqrt(disc);
-            r[n++] = (-b - s) / (2.0 * a);
-            r[n++] = (-b + s) / (2.0 * a);
+            /* the form without cancellation: with a1 tiny against a2 the textbook form returned
+             * 0 for the small root, the law looked rising for ever, and the bracket never closed */
+            const double q = -0.5 * (b + (b >= 0.0 ? 1.0 : -1.0) * sqrt(disc));
+            r[n++] = q / a;
+            if (q != 0.0) r[n++] = c / q;
         }
     }
     for (int k = 0; k < n; ++k) {
@@ -81,9 +84,15 @@ int elastic_strain_at(const tether_params *p, double T, double *eps)
     /* bracket on the rising part [0, limit], then safeguarded Newton */
     double hi = elastic_rising_limit(p);
     if (!isfinite(hi)) {
+        /* rising for ever: double until the tension is passed (bounded: the doubling leaves the
+         * finite numbers after at most ~2100 steps, and a law that never reaches T is refused) */
         hi = T / p->a1;
-        while (elastic_tension(p, hi) < T) hi *= 2.0;
-    } else if (elastic_tension(p, hi) < T) {
+        if (!(hi > 0.0)) hi = DBL_MIN;
+        for (int k = 0; elastic_tension(p, hi) < T; ++k) {
+            if (k > 2200 || !isfinite(hi)) return -1;
+            hi *= 2.0;
+        }
+    } else if (!(elastic_tension(p, hi) >= T)) {
         return -1;
     }
     double lo = 0.0, e = 0.5 * hi;
