@@ -359,3 +359,30 @@ def test_a_cubic_that_turns_down_at_once_is_refused_not_searched_for_ever():
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert p.returncode == 0, p.stderr
     assert "refused:" in p.stdout and "exceeds the largest tension" in p.stdout, p.stdout
+
+
+def test_a_thread_cpu_deadline_counts_only_the_fit_on_its_thread():
+    # two fits side by side on two threads, one engine thread each: a deadline on the calling
+    # thread's CPU clock stops its fit after its own work, not after the sum of both
+    from concurrent.futures import ThreadPoolExecutor
+
+    e = _synthetic(dict(FULL, x0=-0.1184), TRUTH_FULL, 20001, 1e-3, seed=8)
+    free = _free(TRUTH_FULL, {"a1": 1.05, "bw_A": 0.9})
+    c0 = time.thread_time()
+    idn.simulate(e, {n: v[2] for n, v in free.items()})
+    one = time.thread_time() - c0
+    limit = 3 * one
+
+    def run(_):
+        t0 = time.thread_time()
+        try:
+            idn.fit([e], free, n_threads=1, **idn.deadlines(thread_cpu_seconds=limit))
+            return "finished", time.thread_time() - t0
+        except RuntimeError as exc:
+            return str(exc), time.thread_time() - t0
+
+    with ThreadPoolExecutor(2) as ex:
+        out = list(ex.map(run, range(2)))
+    for msg, spent in out:
+        assert "CPU-time deadline passed" in msg, msg
+        assert limit <= spent < limit + 2 * one, (spent, limit, one)

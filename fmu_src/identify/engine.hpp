@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <time.h>
+
 extern "C" {
 #include "physics/tether.h"
 }
@@ -34,8 +36,10 @@ bool output_offset(const char *name, std::size_t &offset);
 // with the error below once one has passed; `hit` says which did (1 wall, 2 CPU), for the message.
 struct Limits {
     double monotonic = 0, cpu = 0; // clock readings in seconds, 0 = none
+    double thread_cpu = 0;         // on the CPU clock of the thread that called kt_fit
+    clockid_t thread_clock{};
     mutable std::atomic<int> hit{0};
-    bool any() const { return monotonic > 0 || cpu > 0; }
+    bool any() const { return monotonic > 0 || cpu > 0 || thread_cpu > 0; }
     bool expired() const;          // reads the clocks; sets hit
     std::string message() const;
 };

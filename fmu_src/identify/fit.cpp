@@ -12,6 +12,7 @@
 #include <vector>
 
 #include <Eigen/Dense>
+#include <pthread.h>
 
 #include "identify/engine.hpp"
 
@@ -318,6 +319,13 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         kt::Limits limits;
         limits.monotonic = o.deadline_monotonic > 0 ? o.deadline_monotonic : 0.0;
         limits.cpu = o.deadline_cpu > 0 ? o.deadline_cpu : 0.0;
+        if (o.deadline_thread_cpu > 0) {
+            if (pthread_getcpuclockid(pthread_self(), &limits.thread_clock) != 0) {
+                err = "kt_fit: deadline_thread_cpu: this thread's CPU clock cannot be read";
+                return -1;
+            }
+            limits.thread_cpu = o.deadline_thread_cpu;
+        }
         if (limits.any()) P.limits = &limits;
         P.rtol_override = o.rtol;
         P.exps.resize((std::size_t)n_exp);

@@ -26,7 +26,7 @@ extern "C" {
 #define KT_API
 #endif
 
-#define KT_IDENTIFY_API_VERSION 3
+#define KT_IDENTIFY_API_VERSION 4
 
 /* ---- parameter table ------------------------------------------------------------------------ */
 #define KT_PAR_REAL 0   /* a Real parameter: a double field of tether_params */
@@ -141,6 +141,9 @@ typedef struct {
      * iterations (an iteration whose simulations crawl can take far longer than the deadline). */
     double deadline_monotonic; /* CLOCK_MONOTONIC */
     double deadline_cpu;       /* CLOCK_PROCESS_CPUTIME_ID (this process, all threads) */
+    double deadline_thread_cpu; /* CLOCK_THREAD_CPUTIME_ID of the thread calling kt_fit: with
+                                   n_threads = 1 the fit's own CPU time, whatever else the process
+                                   runs beside it (fits side by side on several threads) */
 } kt_fit_options;
 
 KT_API void kt_fit_default_options(kt_fit_options *o);

@@ -207,6 +207,7 @@ bool Limits::expired() const
     if (hit.load()) return true;
     if (monotonic > 0 && clock_seconds(CLOCK_MONOTONIC) > monotonic) { hit = 1; return true; }
     if (cpu > 0 && clock_seconds(CLOCK_PROCESS_CPUTIME_ID) > cpu) { hit = 2; return true; }
+    if (thread_cpu > 0 && clock_seconds(thread_clock) > thread_cpu) { hit = 2; return true; }
     return false;
 }
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 import copy
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -345,14 +346,15 @@ OUT_OF_BUDGET = "stopped: the discovery's time budget is spent"
 
 
 def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, deadline: float | None = None,
-              **options):
+              own_thread: bool = False, **options):
     """One fit through tether.fit.fit_traces; on a failure of its staging (a log-scaled parameter
     driven to 0 by the first stage) one direct engine fit of all free parameters instead. A fit
     that runs past ``time_cap`` seconds of this process's CPU time (a start that wandered where the
     equations turn stiff and every simulation crawls; CPU time, so that other work on the machine
     does not change which fits finish), or past the discovery's ``deadline`` (a time.perf_counter()
     value, wall time: the user's budget), is abandoned: the engine checks both inside its
-    simulations, so neither is overrun by more than a few samples' work."""
+    simulations, so neither is overrun by more than a few samples' work. own_thread: the fit runs
+    beside others, on this thread alone (n_threads 1), and the cap counts this thread's CPU time."""
     from . import identify_native as idn
     from .fit import fit_traces
 
@@ -363,8 +365,11 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
     options = {**ENGINE_OPTIONS, **options}
     if deadline is not None and time.perf_counter() >= deadline:
         return None, OUT_OF_BUDGET
+    if own_thread:
+        options["n_threads"] = 1
     options.update(idn.deadlines(wall_seconds=None if deadline is None else deadline - time.perf_counter(),
-                                 cpu_seconds=time_cap))
+                                 cpu_seconds=None if own_thread else time_cap,
+                                 thread_cpu_seconds=time_cap if own_thread else None))
 
     def stopped(msg: str) -> str | None:
         if "wall-time deadline passed" in msg:
@@ -414,6 +419,10 @@ class _DirectResult:
 
 #: engine options for every discovery fit (e.g. n_threads)
 ENGINE_OPTIONS: dict = {}
+#: the short fits from several starts run this many side by side, each on one thread (the
+#: engine's parallel Jacobian keeps a second core only ~30 % busy: its trial steps are serial);
+#: the results are the same bit for bit, and each fit's time cap counts its own thread's CPU time
+PARALLEL_STARTS = 2
 
 
 def _fit_direct(trace, spec, names, start, held=None, **options):
@@ -463,8 +472,18 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     evaluations = 0
     best, best_i, msg = None, -1, ""
     if len(starts) > 1:
-        for i, s in enumerate(starts):
-            r, m = _fit_once(trace, spec, names, s, sc, time_cap=time_cap, max_iterations=quick_iterations, **options)
+        workers = max(1, min(PARALLEL_STARTS, len(starts)))
+
+        def quick(s):
+            return _fit_once(trace, spec, names, s, sc, time_cap=time_cap, max_iterations=quick_iterations,
+                             own_thread=workers > 1, **options)
+
+        if workers > 1:
+            with ThreadPoolExecutor(workers) as pool:
+                quick_fits = list(pool.map(quick, starts))
+        else:
+            quick_fits = [quick(s) for s in starts]
+        for i, (r, m) in enumerate(quick_fits):
             if r is None:
                 msg = m
                 continue

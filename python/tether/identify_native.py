@@ -27,7 +27,7 @@ __all__ = ["Experiment", "FitResult", "PROGRESS", "experiment_from_trace", "libr
 
 INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
 #: the engine's KT_IDENTIFY_API_VERSION this binding is written for
-API_VERSION = 3
+API_VERSION = 4
 SCALE = {"auto": 0, "log": 1, "linear": 2}
 
 _REPO = Path(__file__).resolve().parents[2]
@@ -53,7 +53,7 @@ class _Options(C.Structure):
         ("singular_rel_tol", C.c_double), ("max_rel_std", C.c_double), ("stat_tol", C.c_double),
         ("output_stride", C.c_int), ("horizon_stages", C.c_int), ("verbose", C.c_int),
         ("progress", C.c_void_p), ("progress_ctx", C.c_void_p),
-        ("deadline_monotonic", C.c_double), ("deadline_cpu", C.c_double),
+        ("deadline_monotonic", C.c_double), ("deadline_cpu", C.c_double), ("deadline_thread_cpu", C.c_double),
     ]
 
 
@@ -304,12 +304,17 @@ class FitResult:
         return dict(zip(self.names, map(float, self.values)))
 
 
-def deadlines(wall_seconds: float | None = None, cpu_seconds: float | None = None) -> dict:
-    """Options for :func:`fit` that stop it ``wall_seconds`` of wall time or ``cpu_seconds`` of
-    this process's CPU time (all threads) from now; None = no such limit."""
+def deadlines(wall_seconds: float | None = None, cpu_seconds: float | None = None,
+              thread_cpu_seconds: float | None = None) -> dict:
+    """Options for :func:`fit` that stop it ``wall_seconds`` of wall time, ``cpu_seconds`` of
+    this process's CPU time (all threads) or ``thread_cpu_seconds`` of the calling thread's CPU
+    time (with n_threads=1: the fit's own, whatever runs beside it) from now; None = no limit."""
     import time
 
     out = {}
+    if thread_cpu_seconds is not None:
+        out["deadline_thread_cpu"] = (time.clock_gettime(time.CLOCK_THREAD_CPUTIME_ID)
+                                      + max(float(thread_cpu_seconds), 1e-9))
     if wall_seconds is not None:
         out["deadline_monotonic"] = time.clock_gettime(time.CLOCK_MONOTONIC) + max(float(wall_seconds), 1e-9)
     if cpu_seconds is not None:
@@ -323,8 +328,9 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
 
     options: any field of kt_fit_options (max_iterations, ftol, xtol, gtol, fd_step,
     central_differences, n_starts, start_spread, seed, n_threads, rtol, singular_rel_tol,
-    max_rel_std, stat_tol, output_stride, horizon_stages, verbose, deadline_monotonic and
-    deadline_cpu (readings of time.CLOCK_MONOTONIC and time.CLOCK_PROCESS_CPUTIME_ID, see
+    max_rel_std, stat_tol, output_stride, horizon_stages, verbose, deadline_monotonic,
+    deadline_cpu and deadline_thread_cpu (readings of time.CLOCK_MONOTONIC,
+    time.CLOCK_PROCESS_CPUTIME_ID and the calling thread's time.CLOCK_THREAD_CPUTIME_ID, see
     :func:`deadlines`; the fit raises RuntimeError "kt_fit: stopped: the ... deadline passed" once
     one passes, even inside an iteration), and
     ``progress``: a callable f(start, stage, n_stages, iteration, cost, evaluations) called after
