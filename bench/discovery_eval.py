@@ -52,7 +52,7 @@ def _one(job):
     from tether.traces import read_trace
 
     D.ENGINE_OPTIONS["n_threads"] = 1
-    D.PARALLEL_STARTS = 1            # two traces run side by side already
+    D.PARALLEL_FITS = 1              # two traces run side by side already
     kw = dict(kw)
     family = kw.pop("_family", "independent")
     tr = he.generate(kw.pop("experiment"), kw.pop("effects"), kw.pop("seed"), **kw)

@@ -419,10 +419,11 @@ class _DirectResult:
 
 #: engine options for every discovery fit (e.g. n_threads)
 ENGINE_OPTIONS: dict = {}
-#: the short fits from several starts run this many side by side, each on one thread (the
-#: engine's parallel Jacobian keeps a second core only ~30 % busy: its trial steps are serial);
-#: the results are the same bit for bit, and each fit's time cap counts its own thread's CPU time
-PARALLEL_STARTS = 2
+#: independent fits run this many side by side, each on one thread: the candidates of a step, or
+#: (one candidate alone) the short fits from several starts. The engine's parallel Jacobian keeps
+#: a second core only ~30 % busy (its trial steps are serial). The results are the same bit for
+#: bit, and each fit's time cap counts its own thread's CPU time
+PARALLEL_FITS = 2
 
 
 def _fit_direct(trace, spec, names, start, held=None, **options):
@@ -459,11 +460,12 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
 
 def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Sequence[dict | None], sc: _Scales,
               quick_iterations: int = 12, time_cap: float | None = None, extra: Sequence[str] = (),
-              held: Sequence[str] = (), **options) -> ModelFit:
+              held: Sequence[str] = (), own_thread: bool = False, **options) -> ModelFit:
     """Fit ``spec`` from each start (a few iterations each when there are several; None = tether.fit's
     data-based estimate), then carry the best to convergence. ``best_start`` of the result is the
     index of the start that won. ``extra`` frees shape terms beyond free_parameters; ``held`` keeps
-    terms at their start values."""
+    terms at their start values. own_thread: this model is fitted beside others, every fit on the
+    calling thread alone (see _fit_once)."""
     t0 = time.perf_counter()
     spec = spec.for_experiment(trace.experiment)
     names = free_parameters(spec, trace.experiment)
@@ -472,11 +474,11 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     evaluations = 0
     best, best_i, msg = None, -1, ""
     if len(starts) > 1:
-        workers = max(1, min(PARALLEL_STARTS, len(starts)))
+        workers = 1 if own_thread else max(1, min(PARALLEL_FITS, len(starts)))
 
         def quick(s):
             return _fit_once(trace, spec, names, s, sc, time_cap=time_cap, max_iterations=quick_iterations,
-                             own_thread=workers > 1, **options)
+                             own_thread=own_thread or workers > 1, **options)
 
         if workers > 1:
             with ThreadPoolExecutor(workers) as pool:
@@ -498,15 +500,15 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
             cap2 = None if time_cap is None else 2 * time_cap
             tries = [starts[best_i], dict(best.values)]
             for s in tries:
-                r, m = _fit_once(trace, spec, names, s, sc, time_cap=cap2, **options)
+                r, m = _fit_once(trace, spec, names, s, sc, time_cap=cap2, own_thread=own_thread, **options)
                 if r is not None:
                     evaluations += r.evaluations
                     if r.rms <= best.rms:
                         best = r
                         break
     else:
-        best, msg = _fit_once(trace, spec, names, starts[0], sc,
-                              time_cap=None if time_cap is None else 2 * time_cap, **options)
+        best, msg = _fit_once(trace, spec, names, starts[0], sc, time_cap=None if time_cap is None else 2 * time_cap,
+                              own_thread=own_thread, **options)
         best_i = 0
         evaluations += best.evaluations if best is not None else 0
     if best is None or not math.isfinite(best.rms):
@@ -1165,8 +1167,19 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
     if cur.rms <= WITHIN_NOISE * sigma or not groups:
         return cur, cur_held, []
     out, best = [], None
-    for effect, group in groups:
-        fm = fit(trace, cur.spec, cur.effects, [_shape_start(cur.params, group, sc)], extra=group)
+    side = min(PARALLEL_FITS, len(groups))      # the groups' fits are independent: side by side
+
+    def group_fit(effect_group):
+        group = effect_group[1]
+        return fit(trace, cur.spec, cur.effects, [_shape_start(cur.params, group, sc)], extra=group,
+                   own_thread=side > 1)
+
+    if side > 1:
+        with ThreadPoolExecutor(side) as pool:
+            group_fits = list(pool.map(group_fit, groups))
+    else:
+        group_fits = [group_fit(g) for g in groups]
+    for (effect, group), fm in zip(groups, group_fits):
         if not fm.ok:
             out.append(Refinement(effect, group, cur.rms, float("inf"), cur_held, float("nan"), float("inf"), False,
                                   f"the fit failed: {fm.message}"))
@@ -1235,10 +1248,11 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     shape_free: tuple = ()        # shape terms a refinement freed, kept free in every later fit
     shape_held: tuple = ()        # and the terms they replace, held (at 0) in every later fit
 
-    def fit(tr, sp, eff, starts, scales, extra=(), held=()):
+    def fit(tr, sp, eff, starts, scales, extra=(), held=(), own_thread=False):
         extra = tuple(extra) + tuple(k for k in shape_free if k not in extra and k in sp.parameters)
         held = tuple(held) + shape_held
-        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap, extra=extra, held=held, deadline=deadline)
+        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap, extra=extra, held=held, deadline=deadline,
+                      own_thread=own_thread)
         if deadline is not None and time.perf_counter() > deadline:
             budget_hit[0] = True          # this fit may have been cut short: it cannot judge
         return r
@@ -1279,8 +1293,19 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 stop = "every effect the experiment can reveal is in the model"
                 break
             results = []
-            for eff, new in todo:
-                fm = fit(trace, new, cur.effects + (eff,), candidate_starts(cur, new, sc), sc)
+            jobs = [(eff, new, candidate_starts(cur, new, sc)) for eff, new in todo]
+            side = min(PARALLEL_FITS, len(jobs))       # the candidates are independent: side by side
+
+            def candidate_fit(job, _effects=cur.effects, _side=side):
+                eff, new, starts = job
+                return fit(trace, new, _effects + (eff,), starts, sc, own_thread=_side > 1)
+
+            if side > 1:
+                with ThreadPoolExecutor(side) as pool:
+                    candidate_fits = list(pool.map(candidate_fit, jobs))
+            else:
+                candidate_fits = [candidate_fit(j) for j in jobs]
+            for (eff, new, _), fm in zip(jobs, candidate_fits):
                 dk = fm.n_free - cur.n_free
                 bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
                 cr = CandidateResult(effect=eff, model=fm.model, added_parameters=dk, rms=fm.rms,
@@ -1304,16 +1329,27 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             results = list(best_of.values())
             # the held-out test for the best few that pass on the whole record
             passing = sorted([c for c in results if c.accepted], key=lambda c: c.bic_change)
+
+            def part_fit(c, _side=1):
+                # the first part of the record, fitted from the whole record's optimum (as the current
+                # model's part fit is: both sides start alike, and each converges to its own optimum
+                # of the first part)
+                return fit(part, c.fit.spec, c.fit.effects, [c.fit.params], sc_part, own_thread=_side > 1)
+
+            # the fits of the first few are needed in any case: side by side
+            ahead = passing[:heldout_candidates]
+            side = min(PARALLEL_FITS, len(ahead))
+            if side > 1:
+                with ThreadPoolExecutor(side) as pool:
+                    for c, pf in zip(ahead, pool.map(lambda c: part_fit(c, side), ahead)):
+                        c.part_fit = pf
             tested = 0
             for c in passing:
                 if tested >= heldout_candidates and any(x.accepted for x in passing[:tested]):
                     break
                 tested += 1
-                # the first part of the record, fitted from the whole record's optimum (as the current
-                # model's part fit is: both sides start alike, and each converges to its own optimum
-                # of the first part)
                 new = c.fit.spec
-                pf = fit(part, new, c.fit.effects, [c.fit.params], sc_part)
+                pf = c.part_fit if c.part_fit is not None else part_fit(c)
                 c.part_fit = pf
                 c.heldout_rms = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
                 say(f"  {c.effect}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was {cur_held / sigma:.2f})")
@@ -1379,8 +1415,9 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             break
         refined, _, refs = refine_shapes(
             trace, part, first, cur, cur_held, sigma,
-            lambda tr, sp, eff, starts, extra: fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra,
-                                                   held=_replaced(extra)), sc,
+            lambda tr, sp, eff, starts, extra, own_thread=False: fit(tr, sp, eff, starts, sc_part if tr is part else sc,
+                                                                     extra, held=_replaced(extra),
+                                                                     own_thread=own_thread), sc,
             say)
         refinements += refs
         if budget_hit[0]:
