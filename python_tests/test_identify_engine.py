@@ -319,9 +319,10 @@ def test_a_cpu_deadline_stops_the_fit_inside_its_first_iteration():
     assert np.all(np.isfinite(sim))
     limit = 2 * one                            # the start's simulation fits, its Jacobian does not
     c0 = time.process_time()
-    with pytest.raises(RuntimeError, match="CPU-time deadline passed"):
+    with pytest.raises(idn.DeadlinePassed, match="CPU-time deadline passed") as stop:
         idn.fit([e], free, progress=lambda *a: calls.append(a), **idn.deadlines(cpu_seconds=limit))
     spent = time.process_time() - c0
+    assert stop.value.clock == "cpu"
     assert calls == []                         # stopped before the first iteration ended
     # the overrun is at most a few samples' work per thread, far below one more simulation each
     assert spent < limit + 2 * one, (spent, limit, one)
@@ -330,8 +331,9 @@ def test_a_cpu_deadline_stops_the_fit_inside_its_first_iteration():
 def test_a_passed_wall_deadline_stops_the_fit_before_it_simulates():
     e = _synthetic(dict(SIMPLE, x0=-0.1669), TRUTH_SIMPLE, 2001, 2e-4, seed=9)
     free = _free(TRUTH_SIMPLE, {"a1": 1.1})
-    with pytest.raises(RuntimeError, match="wall-time deadline passed"):
+    with pytest.raises(idn.DeadlinePassed, match="wall-time deadline passed") as stop:
         idn.fit([e], free, deadline_monotonic=time.clock_gettime(time.CLOCK_MONOTONIC) - 1.0)
+    assert stop.value.clock == "wall"
     # and a deadline far away changes nothing: the same result, bit for bit
     a = idn.fit([e], free, output_stride=20)
     b = idn.fit([e], free, output_stride=20, **idn.deadlines(wall_seconds=3600, cpu_seconds=3600))
@@ -378,7 +380,7 @@ def test_a_thread_cpu_deadline_counts_only_the_fit_on_its_thread():
         try:
             idn.fit([e], free, n_threads=1, **idn.deadlines(thread_cpu_seconds=limit))
             return "finished", time.thread_time() - t0
-        except RuntimeError as exc:
+        except idn.DeadlinePassed as exc:
             return str(exc), time.thread_time() - t0
 
     with ThreadPoolExecutor(2) as ex:

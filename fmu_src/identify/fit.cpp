@@ -157,11 +157,17 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
     LMResult R;
     std::string err;
     VectorXd th = clip(P, th0), r;
+    // a deadline passed (here, or inside a simulation): stopped like by the progress callback
+    auto stopped_by_deadline = [&]() {
+        if (!P.out_of_time()) return false;
+        R.status = -2;
+        R.message = P.limits->message();
+        return true;
+    };
     ++C.evaluations;
-    if (P.limits && P.limits->expired()) { R.status = -2; R.message = P.limits->message(); return R; }
+    if (P.limits && P.limits->expired() && stopped_by_deadline()) return R;
     if (!P.residuals(th, r, err)) {
-        if (P.out_of_time()) { R.status = -2; R.message = P.limits->message(); return R; }
-        R.message = "the start fails to simulate: " + err;
+        if (!stopped_by_deadline()) R.message = "the start fails to simulate: " + err;
         return R;
     }
     double cost = 0.5 * r.squaredNorm();
@@ -174,8 +180,10 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
     for (int it = 0; it < o.max_iterations; ++it) {
         ++C.iterations;
         if (need_jacobian && !jacobian(P, th, r, o.fd_step, o.central_differences != 0, J, C)) {
-            R.status = P.out_of_time() ? -2 : -1;
-            R.message = P.out_of_time() ? P.limits->message() : "a Jacobian column failed to simulate";
+            if (!stopped_by_deadline()) {
+                R.status = -1;
+                R.message = "a Jacobian column failed to simulate";
+            }
             break;
         }
         need_jacobian = false;
@@ -247,7 +255,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
             nu *= 2.0;
             if (lambda > 1e16) { converged = true; R.message = "no decrease found (lambda at its limit)"; break; }
         }
-        if (P.out_of_time()) { R.status = -2; R.message = P.limits->message(); break; }
+        if (stopped_by_deadline()) break;
         if (o.verbose)
             std::fprintf(stderr, "[kt_fit] start %d it %d cost %.6e lambda %.2e evals %ld\n", start_no, it, cost, lambda,
                          C.evaluations);

@@ -371,22 +371,18 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
                                  cpu_seconds=None if own_thread else time_cap,
                                  thread_cpu_seconds=time_cap if own_thread else None))
 
-    def stopped(msg: str) -> str | None:
-        if "wall-time deadline passed" in msg:
-            return OUT_OF_BUDGET
-        if "CPU-time deadline passed" in msg:
-            return f"abandoned after {time_cap:.0f} s"
-        return None
+    def stopped(exc: idn.DeadlinePassed) -> str:
+        return OUT_OF_BUDGET if exc.clock == "wall" else f"abandoned after {time_cap:.0f} s"
 
     iterations = int(options.pop("max_iterations", 100))
     while True:
         try:
             return fit_traces([trace], spec, free=names, start=st, fixed=held or None,
                               max_iterations=iterations, **options), ""
+        except idn.DeadlinePassed as exc:
+            return None, stopped(exc)
         except (RuntimeError, ValueError) as exc:
             msg = " ".join(str(exc).split())
-        if stopped(msg):
-            return None, stopped(msg)
         # the engine drops a whole fit when a Jacobian column fails to simulate late in it (the
         # iterate wandered where the solver gives up): stop earlier, keeping the progress made
         if "failed to simulate" in msg and "start fails" not in msg and iterations > 2:
@@ -397,9 +393,10 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
         return None, msg
     try:
         return _fit_direct(trace, spec, names, st, held, **options), ""
+    except idn.DeadlinePassed as exc:
+        return None, stopped(exc)
     except (RuntimeError, ValueError) as exc:
-        msg = " ".join(str(exc).split())
-        return None, stopped(msg) or msg
+        return None, " ".join(str(exc).split())
 
 
 @dataclass
@@ -424,6 +421,19 @@ ENGINE_OPTIONS: dict = {}
 #: a second core only ~30 % busy (its trial steps are serial). The results are the same bit for
 #: bit, and each fit's time cap counts its own thread's CPU time
 PARALLEL_FITS = 2
+
+
+def _side_by_side(fit_one: Callable, items: Sequence, nested: bool = False) -> list:
+    """[fit_one(item, own_thread) for item in items], up to PARALLEL_FITS at a time, each on its own
+    thread (own_thread True); one after the other (own_thread False) when there is one item or
+    PARALLEL_FITS is 1. nested: the caller already runs beside others: one after the other, each
+    still on its own thread alone (own_thread True)."""
+    items = list(items)
+    side = 1 if nested else min(PARALLEL_FITS, len(items))
+    if side <= 1:
+        return [fit_one(x, nested) for x in items]
+    with ThreadPoolExecutor(side) as pool:
+        return list(pool.map(lambda x: fit_one(x, True), items))
 
 
 def _fit_direct(trace, spec, names, start, held=None, **options):
@@ -474,17 +484,9 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     evaluations = 0
     best, best_i, msg = None, -1, ""
     if len(starts) > 1:
-        workers = 1 if own_thread else max(1, min(PARALLEL_FITS, len(starts)))
-
-        def quick(s):
-            return _fit_once(trace, spec, names, s, sc, time_cap=time_cap, max_iterations=quick_iterations,
-                             own_thread=own_thread or workers > 1, **options)
-
-        if workers > 1:
-            with ThreadPoolExecutor(workers) as pool:
-                quick_fits = list(pool.map(quick, starts))
-        else:
-            quick_fits = [quick(s) for s in starts]
+        quick_fits = _side_by_side(
+            lambda s, alone: _fit_once(trace, spec, names, s, sc, time_cap=time_cap, max_iterations=quick_iterations,
+                                       own_thread=alone, **options), starts, nested=own_thread)
         for i, (r, m) in enumerate(quick_fits):
             if r is None:
                 msg = m
@@ -1167,18 +1169,9 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
     if cur.rms <= WITHIN_NOISE * sigma or not groups:
         return cur, cur_held, []
     out, best = [], None
-    side = min(PARALLEL_FITS, len(groups))      # the groups' fits are independent: side by side
-
-    def group_fit(effect_group):
-        group = effect_group[1]
-        return fit(trace, cur.spec, cur.effects, [_shape_start(cur.params, group, sc)], extra=group,
-                   own_thread=side > 1)
-
-    if side > 1:
-        with ThreadPoolExecutor(side) as pool:
-            group_fits = list(pool.map(group_fit, groups))
-    else:
-        group_fits = [group_fit(g) for g in groups]
+    # the groups' fits are independent: side by side
+    group_fits = _side_by_side(lambda eg, alone: fit(trace, cur.spec, cur.effects, [_shape_start(cur.params, eg[1], sc)],
+                                                     extra=eg[1], own_thread=alone), groups)
     for (effect, group), fm in zip(groups, group_fits):
         if not fm.ok:
             out.append(Refinement(effect, group, cur.rms, float("inf"), cur_held, float("nan"), float("inf"), False,
@@ -1294,17 +1287,10 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 break
             results = []
             jobs = [(eff, new, candidate_starts(cur, new, sc)) for eff, new in todo]
-            side = min(PARALLEL_FITS, len(jobs))       # the candidates are independent: side by side
-
-            def candidate_fit(job, _effects=cur.effects, _side=side):
-                eff, new, starts = job
-                return fit(trace, new, _effects + (eff,), starts, sc, own_thread=_side > 1)
-
-            if side > 1:
-                with ThreadPoolExecutor(side) as pool:
-                    candidate_fits = list(pool.map(candidate_fit, jobs))
-            else:
-                candidate_fits = [candidate_fit(j) for j in jobs]
+            # the candidates are independent: side by side
+            candidate_fits = _side_by_side(
+                lambda job, alone, _effects=cur.effects: fit(trace, job[1], _effects + (job[0],), job[2], sc,
+                                                             own_thread=alone), jobs)
             for (eff, new, _), fm in zip(jobs, candidate_fits):
                 dk = fm.n_free - cur.n_free
                 bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
@@ -1330,19 +1316,16 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             # the held-out test for the best few that pass on the whole record
             passing = sorted([c for c in results if c.accepted], key=lambda c: c.bic_change)
 
-            def part_fit(c, _side=1):
+            def part_fit(c, own_thread=False):
                 # the first part of the record, fitted from the whole record's optimum (as the current
                 # model's part fit is: both sides start alike, and each converges to its own optimum
                 # of the first part)
-                return fit(part, c.fit.spec, c.fit.effects, [c.fit.params], sc_part, own_thread=_side > 1)
+                return fit(part, c.fit.spec, c.fit.effects, [c.fit.params], sc_part, own_thread=own_thread)
 
             # the fits of the first few are needed in any case: side by side
             ahead = passing[:heldout_candidates]
-            side = min(PARALLEL_FITS, len(ahead))
-            if side > 1:
-                with ThreadPoolExecutor(side) as pool:
-                    for c, pf in zip(ahead, pool.map(lambda c: part_fit(c, side), ahead)):
-                        c.part_fit = pf
+            for c, pf in zip(ahead, _side_by_side(part_fit, ahead)):
+                c.part_fit = pf
             tested = 0
             for c in passing:
                 if tested >= heldout_candidates and any(x.accepted for x in passing[:tested]):

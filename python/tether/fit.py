@@ -301,15 +301,6 @@ def _kinematics(trace: Trace, f_dom: float) -> _Kinematics:
 
 
 # ---------------------------------------------------------------------------------------------
-# Bouc-Wen force along a measured path
-def _bw_path(x: Sequence[float], A: float, beta: float, gamma: float, periodic: bool) -> np.ndarray:
-    """z along the path x (n = 1): dz/dx = A - |z| (gamma + beta sgn(dx z)), integrated exactly
-    sample to sample for a fixed sign of z (a linear ODE in x). Periodic: two passes, the second kept.
-    The loop runs in the engine (physics/boucwen.c): an estimate calls it hundreds of times."""
-    return idn.bouc_wen_path(x, A, beta, gamma, periodic)
-
-
-# ---------------------------------------------------------------------------------------------
 # initial estimates
 def _restoring_columns(x: np.ndarray, cubic: bool) -> list[np.ndarray]:
     return [x, x ** 2, x ** 3] if cubic else [x]
@@ -382,7 +373,8 @@ def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
         sA, sb = k_lin, 1.0 / amp
 
         def residual(p):
-            zz = _bw_path(xs, p[0] * sA, p[1] * sb, p[2] * sb, K.periodic)
+            # z along the measured path, the law integrated exactly sample to sample (physics/boucwen.c)
+            zz = idn.bouc_wen_path(xs, p[0] * sA, p[1] * sb, p[2] * sb, K.periodic)
             _, r = solve(zz, keep)
             return r
 
@@ -398,7 +390,7 @@ def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
         if best is not None:
             pA, pb, pg = best.x
             est.update(bw_A=float(pA * sA), bw_beta=float(pb * sb), bw_gamma=float(pg * sb))
-            z = _bw_path(xs, est["bw_A"], est["bw_beta"], est["bw_gamma"], K.periodic)
+            z = idn.bouc_wen_path(xs, est["bw_A"], est["bw_beta"], est["bw_gamma"], K.periodic)
     coef, res = solve(z, keep)
     nd = 3 if disp else 1
     c = [float(v) for v in coef[:nd]]

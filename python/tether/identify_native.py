@@ -22,7 +22,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["Experiment", "FitResult", "PROGRESS", "experiment_from_trace", "library", "parameter_names", "parameter_start", "simulate", "fit", "deadlines", "bouc_wen_path",
+__all__ = ["Experiment", "FitResult", "PROGRESS", "experiment_from_trace", "library", "parameter_names", "parameter_start", "simulate", "fit", "deadlines", "DeadlinePassed", "bouc_wen_path",
            "spline_derivatives", "INPUT_NONE", "INPUT_FORCE", "INPUT_LOAD"]
 
 INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
@@ -304,6 +304,14 @@ class FitResult:
         return dict(zip(self.names, map(float, self.values)))
 
 
+class DeadlinePassed(RuntimeError):
+    """A fit stopped at one of its deadlines (see :func:`deadlines`); ``clock`` is "wall" or "cpu"."""
+
+    def __init__(self, message: str, clock: str):
+        super().__init__(message)
+        self.clock = clock
+
+
 def deadlines(wall_seconds: float | None = None, cpu_seconds: float | None = None,
               thread_cpu_seconds: float | None = None) -> dict:
     """Options for :func:`fit` that stop it ``wall_seconds`` of wall time, ``cpu_seconds`` of
@@ -331,8 +339,8 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
     max_rel_std, stat_tol, output_stride, horizon_stages, verbose, deadline_monotonic,
     deadline_cpu and deadline_thread_cpu (readings of time.CLOCK_MONOTONIC,
     time.CLOCK_PROCESS_CPUTIME_ID and the calling thread's time.CLOCK_THREAD_CPUTIME_ID, see
-    :func:`deadlines`; the fit raises RuntimeError "kt_fit: stopped: the ... deadline passed" once
-    one passes, even inside an iteration), and
+    :func:`deadlines`; the fit raises DeadlinePassed, a RuntimeError "kt_fit: stopped: the ...
+    deadline passed", once one passes, even inside an iteration), and
     ``progress``: a callable f(start, stage, n_stages, iteration, cost, evaluations) called after
     every LM iteration; a true return value stops the fit (RuntimeError), an exception it raises
     stops the fit and is raised again here."""
@@ -382,7 +390,13 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
     if raised:
         raise raised[0]
     if rc < 0:
-        raise RuntimeError("kt_fit: " + lib.kt_last_error().decode().removeprefix("kt_fit: "))
+        msg = "kt_fit: " + lib.kt_last_error().decode().removeprefix("kt_fit: ")
+        # the engine's messages of a passed deadline (Limits::message in simulate.cpp)
+        for clock, text in (("wall", "stopped: the wall-time deadline passed"),
+                            ("cpu", "stopped: the CPU-time deadline passed")):
+            if msg.endswith(text):
+                raise DeadlinePassed(msg, clock)
+        raise RuntimeError(msg)
     return FitResult(
         names=names, values=vals, std_error=se, ci_low=cl, ci_high=ch, covariance=cov, correlation=cor,
         singular_values=sv, singular_vectors=vec, direction_flags=dfl.astype(bool),
