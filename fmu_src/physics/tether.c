@@ -258,8 +258,13 @@ void tether_derivatives(const tether_model *M, double t, const double *y, double
     } else if (p->rig == RIG_LOAD) {
         ydot[ST_LOAD_ELONGATION] = s.udot;
     }
-    if (p->hysteresis == HYSTERESIS_BOUCWEN)
-        ydot[ST_HYSTERETIC_FORCE] = boucwen_rate(p, s.x, s.L0 * s.eps_m_rate, s.z);
+    if (p->hysteresis == HYSTERESIS_BOUCWEN) {
+        /* a slack tether is shortened, not compressed: its fibres stay at zero strain and the
+         * friction between them sees no motion, so the hysteretic force holds its value until
+         * the tether is stretched again */
+        const int fibres_still = slack_active(M) && !M->d.taut && s.eps_m <= 0.0;
+        ydot[ST_HYSTERETIC_FORCE] = fibres_still ? 0.0 : boucwen_rate(p, s.x, s.L0 * s.eps_m_rate, s.z);
+    }
     if (p->creep) {
         ydot[ST_CREEP_1] = s.creep_rate.kelvin[0];
         ydot[ST_CREEP_2] = s.creep_rate.kelvin[1];
