@@ -7,19 +7,35 @@
 
 #define DAMPING_TABLE_KNOTS 6
 
-/* The tabulated part of c(x): 0 at x = 0, c_table_k at |x| = k dx, linear in between, held at the
- * last value beyond the last knot. It lets c(x) take any shape the data show (levelling off, a
- * threshold), where the polynomial fixes one. */
+/* The tabulated part of c(x): 0 at x = 0, c_table_k at |x| = k dx, held at the last value beyond
+ * the last knot, and in between the monotone cubic Hermite interpolant (Fritsch-Carlson): smooth
+ * (C1), level at x = 0 as a smooth even c(x) is and at the last knot where it joins the held
+ * value, and never overshooting the knots. It lets c(x) take any shape the data show (levelling
+ * off, a threshold), where the polynomial fixes one; a straight line between knots put a kink in
+ * every knot and a slope at x = 0 that a smooth damping law does not have. */
 static double damping_table(const tether_params *p, double ax)
 {
     if (!(p->c_table_dx > 0.0)) return 0.0;
-    const double knot[DAMPING_TABLE_KNOTS + 1] = {0.0,          p->c_table_1, p->c_table_2, p->c_table_3,
-                                                  p->c_table_4, p->c_table_5, p->c_table_6};
+    enum { N = DAMPING_TABLE_KNOTS };
+    const double y[N + 1] = {0.0, p->c_table_1, p->c_table_2, p->c_table_3, p->c_table_4, p->c_table_5, p->c_table_6};
     const double s = ax / p->c_table_dx;
-    if (s >= DAMPING_TABLE_KNOTS) return knot[DAMPING_TABLE_KNOTS];
+    if (s >= N) return y[N];
     const int k = (int)s;
     const double f = s - k;
-    return knot[k] + f * (knot[k + 1] - knot[k]);
+    /* slopes per knot spacing: 0 at both ends; inside, the Fritsch-Carlson weighted harmonic mean
+     * of the neighbouring secants (0 where they differ in sign: an extremum stays at its knot) */
+    double d[2];
+    for (int i = 0; i < 2; ++i) {
+        const int j = k + i;
+        if (j == 0 || j == N) {
+            d[i] = 0.0;
+            continue;
+        }
+        const double a = y[j] - y[j - 1], b = y[j + 1] - y[j];
+        d[i] = (a * b > 0.0) ? 2.0 * a * b / (a + b) : 0.0;
+    }
+    const double f2 = f * f, f3 = f2 * f;
+    return (2 * f3 - 3 * f2 + 1) * y[k] + (f3 - 2 * f2 + f) * d[0] + (-2 * f3 + 3 * f2) * y[k + 1] + (f3 - f2) * d[1];
 }
 
 double damping_coefficient(const tether_params *p, double x, double v)
