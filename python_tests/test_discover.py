@@ -170,6 +170,40 @@ def test_shape_refinement_follows_a_damping_that_levels_off(tmp_path, run_cli):
     assert float(np.sqrt(np.mean((y - tr.measured) ** 2))) == pytest.approx(doc["rmse_final"], rel=1e-3)
 
 
+@pytest.mark.parametrize("effects, acts", [((), False), (("slack",), True)])
+def test_slack_is_credited_only_where_it_acts(tmp_path, effects, acts):
+    """Slack adds no parameter, so a refit with it can win on the optimizer's luck alone. With the
+    generator's own stiffness and damping, a free vibration that never goes slack simulates the
+    same with slack on and off (the tether is stretched throughout): slack must be refused there,
+    and kept on a release from above the slack point (the generator's slack traces)."""
+    from tether.models import parse_model
+
+    stem, tr = _write(tmp_path, "fv", "free_vibration", effects, 5, noise=1e-4, rate=200.0)
+    trace = read_trace(stem)
+    derived = tr.meta["hidden"]["derived"]
+    params = {"EA": derived["k_lin_N_m"] * trace.length_m, "c0": derived["c0_N_s_m"]}
+    with_slack = parse_model("linear+slack").for_experiment(trace.experiment)
+    fm = D.ModelFit(spec=with_slack, effects=("slack",), params=params, free=["EA", "c0"], rms=1e-4,
+                    predicted=D.predict(trace, with_slack, params))
+    ok, verdict = D._slack_acts(trace, parse_model("linear"), fm, 1e-4, "earns")
+    print(f"FIGURE slack {'released above the slack point' if acts else 'never slack'}: {ok}, {verdict}")
+    assert ok is acts
+    assert verdict == "earns" if acts else "slack never acts" in verdict
+
+
+def test_a_part_fit_holds_the_table_knots_beyond_its_reach():
+    """The first part of a record reaching 0.05 m cannot see the knots of a table 0.02 m apart past
+    0.05 m (knots 3-6); those stay at the whole record's values in the part's fit."""
+
+    class _Part:
+        rig = "payload"
+        measured = 0.05 * np.sin(np.linspace(0.0, 20.0, 500))
+
+    knots = tuple(f"c_table_{j}" for j in range(1, 7))
+    assert D._knots_unseen(_Part, knots + ("bw_n",), [{"c_table_dx": 0.02}]) == knots[2:]
+    assert D._knots_unseen(_Part, ("bw_n",), [{"c_table_dx": 0.02}]) == ()
+
+
 def test_bundled_trace_two_effects_json_report_and_rerun(tmp_path, run_cli):
     """The demo's record (power-law stiffness and slack hidden): both named, in steps that each
     shrink the gap; the JSON has the contract's fields; the report shows the story; the JSON is a
