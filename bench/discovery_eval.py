@@ -243,7 +243,13 @@ def report(rows, wall):
     print(f"  right set and rmse_final <= 1.5 x noise: {len(within_true)}/{len(exact)} with the generator's sigma, "
           f"{len(within_est)}/{len(exact)} with the estimated one; rmse_final/noise median "
           f"{ratios[len(ratios) // 2] if ratios else float('nan'):.2f}, max {max(ratios) if ratios else float('nan'):.2f}")
-    print(f"  time per trace: median {secs[len(secs) // 2]:.0f} s, max {secs[-1]:.0f} s (with --jobs sharing 2 cores)")
+    effect_exact = [r for r in exact if r["hidden"]]
+    over = ", ".join(f"{r['name'][:2]} {r['rmse_final'] / r['noise_true']:.2f}" for r in effect_exact
+                     if r["rmse_final"] > 1.5 * r["noise_true"])
+    print(f"  of them with an effect hidden: {sum(1 for r in effect_exact if r in within_true)}/{len(effect_exact)}"
+          + (f" (over 1.5: {over})" if over else ""))
+    if secs:
+        print(f"  time per trace: median {secs[len(secs) // 2]:.0f} s, max {secs[-1]:.0f} s (with --jobs sharing 2 cores)")
 
 
 if __name__ == "__main__":
