@@ -1239,7 +1239,7 @@ class Refinement:
 def _knots_unseen(part: Trace, extra: Sequence[str], starts: Sequence[dict | None]) -> tuple:
     """The damping table's knots beyond the displacements of the record's first part: a fit of the
     part cannot see them, yet a knot just past its reach still moves the cubic's slope inside it,
-    and freed there it took values that wrecked the prediction of the held-out part (forced sweep,
+    and freed there it took values that wrecked the prediction of the held-out part (forced multisine,
     Gaussian c(x): whole record 1.00 x noise, held-out 7.7 x against 3.3 x without the table). They
     stay at the whole record's values, as the unseen knots of a straight-line table did."""
     knots = [k for k in extra if k.startswith("c_table_") and k != "c_table_dx"]
