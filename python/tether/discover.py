@@ -75,9 +75,12 @@ SHAPE_HELD = ("c_table_dx",)
 SHAPE_REPLACES = {"c_table_1": ("c_drag", "c1", "c2")}
 
 
-_ALL_REPLACED = tuple(r for rs in SHAPE_REPLACES.values() for r in rs)
-#: every shape term: one a fit does not free stays at its start's value (not the FMU's default)
-_SHAPE_NAMES = tuple(dict.fromkeys(k for groups in SHAPE_TERMS.values() for g in groups for k in g))
+#: terms a fit that does not free them holds at its start's value, not at the FMU's default: the
+#: table's knot spacing, the terms a shape group replaces (their 0 is not every default: c1's is
+#: 25 N s/m^2) and every shape term (e.g. the table's knots a part of the record does not reach)
+HELD_AT_START = tuple(dict.fromkeys(
+    SHAPE_HELD + tuple(r for rs in SHAPE_REPLACES.values() for r in rs)
+    + tuple(k for groups in SHAPE_TERMS.values() for g in groups for k in g)))
 
 
 def _replaced(group: Sequence[str]) -> tuple:
@@ -135,7 +138,7 @@ def _damping_table_start(trace: Trace, spec: ModelSpec, params: dict, dx: float)
     if spec.slack and g > 0:
         k = float(params.get("EA", params.get("a1", 0.0))) / float(trace.length_m)
         if k > 0:
-            keep &= K.x > -0.9 * m * g / k            # taut for sure
+            keep &= F._taut_for_sure(K.x, m, g, k)
     rhs = K.f - m * K.a
     if spec.hysteresis == "boucwen" and all(n in params for n in ("bw_A", "bw_beta", "bw_gamma")):
         rhs = rhs - idn.bouc_wen_path(K.x, float(params["bw_A"]), float(params["bw_beta"]), float(params["bw_gamma"]),
@@ -147,10 +150,7 @@ def _damping_table_start(trace: Trace, spec: ModelSpec, params: dict, dx: float)
     A = np.column_stack(cols)[keep]
     if A.shape[0] <= 2 * A.shape[1]:
         return None
-    scale = np.linalg.norm(A, axis=0)
-    scale[scale == 0] = 1.0
-    coef, *_ = np.linalg.lstsq(A / scale, rhs[keep], rcond=None)
-    coef = coef / scale
+    coef = F._scaled_lstsq(A, rhs[keep])
     if not np.all(np.isfinite(coef)):
         return None
     p = {"c0": float(coef[0]) if coef[0] > 0 else float(params.get("c0", 0.0)), "c_table_dx": dx}
@@ -416,11 +416,8 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
     from .fit import fit_traces
 
     st = None if start is None else _clean_start(names, start, sc)
-    # held terms a start may set away from the FMU's defaults (the damping table's knot spacing, the
-    # terms a shape group replaces: their 0 is not every default, c1's is 25 N s/m^2; and shape terms
-    # a fit leaves out, such as the table's knots a part of the record does not reach)
-    held = {k: float(start[k]) for k in SHAPE_HELD + _ALL_REPLACED + _SHAPE_NAMES if start and k in start
-            and k not in names and k in spec.parameters}
+    held = {k: float(start[k]) for k in HELD_AT_START if start and k in start and k not in names
+            and k in spec.parameters}
     options = {**ENGINE_OPTIONS, **options}
     if deadline is not None and time.perf_counter() >= deadline:
         return None, OUT_OF_BUDGET
@@ -1268,7 +1265,7 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
     if cur.rms <= WITHIN_NOISE * sigma or not groups:
         return cur, cur_held, []
     out, best = [], None
-    # the groups' fits are independent: side by side
+
     def starts(group):
         flat = _shape_start(cur.params, group, sc)
         if not any(g.startswith("c_table_") for g in group):
@@ -1276,6 +1273,7 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
         ee = _damping_table_start(trace, cur.spec, cur.params, flat["c_table_dx"])
         return [flat] if ee is None else [flat, {**flat, **ee}]
 
+    # the groups' fits are independent: side by side
     group_fits = _side_by_side(lambda eg, alone: fit(trace, cur.spec, cur.effects, starts(eg[1]), extra=eg[1],
                                                      own_thread=alone), groups)
     for (effect, group), fm in zip(groups, group_fits):

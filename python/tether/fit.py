@@ -302,6 +302,21 @@ def _kinematics(trace: Trace, f_dom: float) -> _Kinematics:
 
 # ---------------------------------------------------------------------------------------------
 # initial estimates
+def _scaled_lstsq(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Least squares A coef = b with A's columns scaled to unit norm (a column of zeros as it is):
+    columns of displacement, velocity and their powers differ by many orders of magnitude."""
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    coef, *_ = np.linalg.lstsq(A / scale, b, rcond=None)
+    return coef / scale
+
+
+def _taut_for_sure(x: np.ndarray, m: float, g: float, k: float) -> np.ndarray:
+    """Samples of a payload record whose displacement x stays above 90 % of the balance stretch
+    m g / k below balance: taut whatever the law's details (a slack record's other samples may not be)."""
+    return x > -0.9 * m * g / k
+
+
 def _restoring_columns(x: np.ndarray, cubic: bool) -> list[np.ndarray]:
     return [x, x ** 2, x ** 3] if cubic else [x]
 
@@ -347,10 +362,7 @@ def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
         cols = _damping_columns(K.x[sel], K.v[sel], dsp) + _restoring_columns(K.x[sel], cub)
         A = np.column_stack(cols)
         b = rhs_all[sel] - (0.0 if z is None else z[sel])
-        scale = np.linalg.norm(A, axis=0)
-        scale[scale == 0] = 1.0
-        coef, *_ = np.linalg.lstsq(A / scale, b, rcond=None)
-        coef = coef / scale
+        coef = _scaled_lstsq(A, b)
         res = b - A @ coef
         return coef, res
 
@@ -359,7 +371,7 @@ def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
     k_lin = float(coef[1]) if coef[1] > 0 else m * (2 * math.pi * f_dom) ** 2
     c_lin = float(coef[0])
     if spec.slack and g > 0:
-        slack_free = K.x > -0.9 * m * g / k_lin
+        slack_free = _taut_for_sure(K.x, m, g, k_lin)
         if slack_free[keep].sum() > 20:
             keep &= slack_free
     est: dict = {"_k_lin": k_lin, "_c_lin": c_lin, "_amp": amp, "_omega": math.sqrt(max(k_lin, 1e-300) / m)}
@@ -538,11 +550,7 @@ def _load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> 
         if EA > 0:
             est["EA"] = EA
         if spec.stiffness == "cubic" and eps.size >= 4:
-            A = np.column_stack([eps, eps ** 2, eps ** 3])
-            s = np.linalg.norm(A, axis=0)
-            s[s == 0] = 1.0
-            coef, *_ = np.linalg.lstsq(A / s, T, rcond=None)
-            coef /= s
+            coef = _scaled_lstsq(np.column_stack([eps, eps ** 2, eps ** 3]), T)
             if coef[0] > 0:
                 est.update(a1=float(coef[0]), a2=float(coef[1]), a3=float(coef[2]))
     if spec.hysteresis == "kawabata":
