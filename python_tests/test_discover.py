@@ -323,3 +323,38 @@ def test_noise_free_record_is_refused_with_a_reason(tmp_path, run_cli, write_tra
     out = tmp_path / "d.json"
     status, _, err = run_cli("discover", stem, "--json", out)
     assert status == 1 and "no noise" in err and "still" in err and not out.exists()
+
+
+def test_the_creep_start_finds_the_kelvin_cells_of_a_record():
+    """A creep record of three Kelvin cells whose retardation times lie on the start's grid, strain
+    by the closed-form response to a tension linear between samples (not the start's own recursion):
+    the equation-error start picks those three times and their compliances, and the stiffness."""
+    t = np.arange(0.0, 36000.0 + 1.0, 10.0)
+    T = np.where(t < 10.0, 0.0, np.where(t < 14400.0, 100.0, 5.0))
+    EA, L = 3500.0, 12.0
+    hold = float(np.max(np.diff(t[np.r_[0, np.flatnonzero(np.diff(T)) + 1, len(t) - 1]])))
+    grid = D.retardation_grid(t, hold)
+    taus, J = grid[[3, 7, 11]], np.array([1e-6, 3e-6, 5e-6])
+    eps = T / EA
+    for tau, j in zip(taus, J):
+        e = np.zeros_like(t)
+        for i in range(1, len(t)):
+            h = t[i] - t[i - 1]
+            a, b = j * T[i - 1], j * (T[i] - T[i - 1]) / h      # J T(s) = a + b s over the interval
+            e[i] = a + b * (h - tau) + (e[i - 1] - a + b * tau) * math.exp(-h / tau)
+        eps = eps + e
+
+    class _Creep:
+        experiment = "creep"
+        time, input, measured, length_m = t, T, eps * L, L
+
+    class _Sc:
+        ea = 3000.0
+
+    _Sc.hold = hold
+    from tether.models import parse_model
+
+    st = D._retardation_times_start(_Creep, parse_model("linear+creep"), {"EA": 3000.0}, _Sc)
+    assert [st[f"creep_tau{k}"] for k in (1, 2, 3)] == pytest.approx(list(taus), rel=1e-12)
+    assert [st[f"creep_J{k}"] for k in (1, 2, 3)] == pytest.approx(list(J), rel=5e-3)
+    assert st["EA"] == pytest.approx(EA, rel=1e-4)

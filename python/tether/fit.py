@@ -465,6 +465,35 @@ def _kawabata_cycle(trace: Trace) -> dict | None:
     return {"LT": LT, "RT": RT, "residual": eps_1 / eps_m, "eps_m": eps_m, "F_m": Fm}
 
 
+def kelvin_response(t: np.ndarray, T: np.ndarray, tau: float) -> np.ndarray:
+    """Strain of a Kelvin cell of unit compliance and retardation time ``tau`` under the tension
+    ``T`` sampled at ``t`` (over each interval the tension taken at the mean of its ends)."""
+    w = np.zeros_like(T)
+    for i in range(1, len(t)):
+        h = t[i] - t[i - 1]
+        e = math.exp(-h / tau)
+        w[i] = w[i - 1] * e + (1 - e) * 0.5 * (T[i] + T[i - 1])
+    return w
+
+
+def slip_response(t: np.ndarray, T: np.ndarray, slip_tau: float) -> np.ndarray:
+    """A saturating slip of unit size per loading (above half the largest tension), 1 -
+    exp(-t_loaded / slip_tau), that stays after unloading and adds up over the loadings."""
+    loaded = T > 0.5 * T.max()
+    slip = np.zeros_like(T)
+    done, since = 0.0, None
+    for i in range(len(t)):
+        if loaded[i]:
+            since = t[i] if since is None else since
+            slip[i] = done + 1.0 - math.exp(-(t[i] - since) / slip_tau)
+        else:
+            if since is not None:
+                done += 1.0 - math.exp(-(t[i] - since) / slip_tau)
+                since = None
+            slip[i] = done
+    return slip
+
+
 def _creep_compliances(traces: Sequence[Trace], elastic: Callable[[np.ndarray], np.ndarray], taus: Sequence[float],
                        slip_tau: float):
     """Kelvin compliances J_k and the slip per loading by non-negative least squares:
@@ -477,27 +506,8 @@ def _creep_compliances(traces: Sequence[Trace], elastic: Callable[[np.ndarray], 
         t = np.asarray(tr.time, float)
         T = np.asarray(tr.input, float)
         eps = np.asarray(tr.measured, float) / float(tr.length_m)
-        cols = []
-        for tau in taus:
-            w = np.zeros_like(T)
-            for i in range(1, len(t)):
-                h = t[i] - t[i - 1]
-                e = math.exp(-h / tau)
-                w[i] = w[i - 1] * e + (1 - e) * 0.5 * (T[i] + T[i - 1])
-            cols.append(w)
-        loaded = T > 0.5 * T.max()
-        slip = np.zeros_like(T)
-        done, since = 0.0, None
-        for i in range(len(t)):
-            if loaded[i]:
-                since = t[i] if since is None else since
-                slip[i] = done + 1.0 - math.exp(-(t[i] - since) / slip_tau)
-            else:
-                if since is not None:
-                    done += 1.0 - math.exp(-(t[i] - since) / slip_tau)
-                    since = None
-                slip[i] = done
-        cols.append(slip)
+        cols = [kelvin_response(t, T, tau) for tau in taus]
+        cols.append(slip_response(t, T, slip_tau))
         rows.append(np.column_stack(cols))
         rhs.append(eps - elastic(T))
     A = np.vstack(rows)
