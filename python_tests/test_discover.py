@@ -359,3 +359,38 @@ def test_the_creep_start_finds_the_kelvin_cells_of_a_record():
     assert [st[f"creep_tau{k}"] for k in (1, 2, 3)] == pytest.approx(list(taus), rel=1e-12)
     assert [st[f"creep_J{k}"] for k in (1, 2, 3)] == pytest.approx(list(J), rel=5e-3)
     assert st["EA"] == pytest.approx(EA, rel=1e-4)
+
+
+def test_a_named_slack_is_shown_with_the_balance_of_the_slack_model(tmp_path):
+    """Where the model before the step puts the balance so low that the record never seems to go
+    slack (a law bent to mimic the slack), the evidence of a slack named next does not stop at
+    "nothing shows a slack tether": it adds what the slack model sees, the share of samples below
+    zero elongation counted here from the generator's own balance stretch and the record."""
+    from tether.models import parse_model
+
+    stem, gen = _write(tmp_path, "fv_slack", "free_vibration", {"slack"}, 17, noise=1e-5, rate=200.0)
+    ub = gen.meta["hidden"]["derived"]["balance_elongation_m"]
+    sigma = gen.meta["hidden"]["noise_sigma_m"]
+    tr = read_trace(stem)
+    n = len(tr.time)
+    m, g, L = tr.payload_mass_kg, tr.gravity_m_s2, tr.length_m
+
+    def model(spec, ea):
+        return D.ModelFit(spec=parse_model(spec, "free_vibration"), effects=(), params={"EA": ea, "c0": 1.0},
+                          free=["EA", "c0"], rms=1.0, predicted=np.zeros(n))
+
+    # a stiffness so low that the balance lies below every measured point
+    soft = model("linear", 1.01 * m * g * L / (ub - float(np.min(tr.measured))))
+    sig = D.signatures(tr, soft, sigma, D.regimes(tr, soft))["slack"]
+    assert sig["score"] == 0.0 and "never goes below zero" in sig["text"]
+    ea = m * g * L / ub
+    win = D.CandidateResult(effect="slack", model="linear+slack", added_parameters=0, rms=1.0, heldout_rms=1.0,
+                            bic_change=-1.0, signature=0.0, signature_text=sig["text"], fit=model("linear+slack", ea))
+    text = D._slack_seen_by(tr, win)
+    share = 100.0 * np.mean(np.asarray(tr.measured) + ub < 0)
+    assert share > 1.0
+    assert text.startswith(sig["text"])
+    assert f"balance stretch {ub:.4g} m" in text and f"below zero in {share:.1f} % of the record" in text
+    # a slack the model before the step already showed keeps its own signature
+    win.signature, win.signature_text = 0.3, "shown before"
+    assert D._slack_seen_by(tr, win) == "shown before"
