@@ -179,8 +179,6 @@ def _retardation_times_start(trace: Trace, spec: ModelSpec, params: dict, sc: _S
     None where the record is not a creep test."""
     from itertools import combinations
 
-    from scipy.optimize import nnls
-
     from . import fit as F
 
     if trace.experiment != "creep" or not sc.hold > 0:
@@ -202,12 +200,9 @@ def _retardation_times_start(trace: Trace, spec: ModelSpec, params: dict, sc: _S
     b = eps - elastic
     best = None
     for idx in combinations(range(len(grid)), 3):
-        A = np.column_stack(fixed + [kelvin[i] for i in idx])
-        scale = np.linalg.norm(A, axis=0)
-        scale[scale == 0] = 1.0
-        coef, res = nnls(A / scale, b)
+        coef, res = F._scaled_nnls(np.column_stack(fixed + [kelvin[i] for i in idx]), b)
         if best is None or res < best[0]:
-            best = (res, idx, coef / scale)
+            best = (res, idx, coef)
     _, idx, coef = best
     J = coef[3:]
     if not np.all(np.isfinite(coef)) or not J.max() > 0:

@@ -311,6 +311,17 @@ def _scaled_lstsq(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     return coef / scale
 
 
+def _scaled_nnls(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
+    """Non-negative least squares A coef = b, coef >= 0, with A's columns scaled to unit norm as in
+    _scaled_lstsq; returns coef and the residual norm |A coef - b| (which the scaling leaves as is)."""
+    from scipy.optimize import nnls
+
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    coef, res = nnls(A / scale, b)
+    return coef / scale, float(res)
+
+
 def _taut_for_sure(x: np.ndarray, m: float, g: float, k: float) -> np.ndarray:
     """Samples of a payload record whose displacement x stays above 90 % of the balance stretch
     m g / k below balance: taut whatever the law's details (a slack record's other samples may not be)."""
@@ -499,7 +510,6 @@ def _creep_compliances(traces: Sequence[Trace], elastic: Callable[[np.ndarray], 
     """Kelvin compliances J_k and the slip per loading by non-negative least squares:
     eps - eps_elastic(T) = sum_k J_k (T through 1/(1 + tau_k s)) + S (slip: for every loading, a
     saturating 1 - exp(-t_loaded / slip_tau) that stays after unloading)."""
-    from scipy.optimize import nnls
 
     rows, rhs = [], []
     for tr in traces:
@@ -525,10 +535,7 @@ def _creep_compliances(traces: Sequence[Trace], elastic: Callable[[np.ndarray], 
     slip = max(float(np.mean(persistent)), 0.0) if persistent else 0.0
     b = b - slip * A[:, -1]
     A = A[:, :-1]
-    scale = np.linalg.norm(A, axis=0)
-    scale[scale == 0] = 1.0
-    coef, _ = nnls(A / scale, b)
-    coef = coef / scale
+    coef, _ = _scaled_nnls(A, b)
     return [max(float(c), 1e-12) for c in coef], max(slip, 1e-12)
 
 
