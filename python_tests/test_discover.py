@@ -257,6 +257,12 @@ def test_bundled_trace_two_effects_json_report_and_rerun(tmp_path, run_cli):
             assert 0.0 <= w["start_s"] < w["end_s"] <= t_end + 1e-9
         assert s["evidence"]
     assert doc["rmse_final"] == pytest.approx(prev)
+    # every candidate fitted says what it cost, the rejected ones too (their curves are dropped)
+    fitted = [c for r in doc["rounds"] for c in r["candidates"]
+              if c["rmse"] is not None and math.isfinite(c["rmse"])]
+    assert len(fitted) > len(doc["added_effects"])
+    for c in fitted:
+        assert 0.0 < c["seconds"] <= doc["seconds"], c
     # progress on stderr, the account on stdout
     assert "added nonlinear_stiffness" in err and "discovered: nonlinear_stiffness, slack" in out
     page = (report / "index.html").read_text()

@@ -1037,13 +1037,25 @@ class CandidateResult:
     part_fit: ModelFit = field(repr=False, default=None)
     verdict: str = ""
     accepted: bool = False
+    seconds_spent: float | None = None      # kept by forget_curves
+
+    def seconds(self) -> float:
+        """The time of this candidate's fits (the whole record's and the held-out part's)."""
+        if self.seconds_spent is not None:
+            return self.seconds_spent
+        return (self.fit.seconds if self.fit else 0.0) + (self.part_fit.seconds if self.part_fit else 0.0)
+
+    def forget_curves(self) -> None:
+        """Drop the fits (their fitted curves are what weighs), keeping what they cost."""
+        self.seconds_spent = self.seconds()
+        self.fit = self.part_fit = None
 
     def as_dict(self, sigma: float) -> dict:
         return {"effect": self.effect, "model": self.model, "added_parameters": self.added_parameters,
                 "rmse": self.rms, "rmse_over_noise": self.rms / sigma, "heldout_rmse": self.heldout_rms,
                 "heldout_rmse_over_noise": self.heldout_rms / sigma, "bic_change": self.bic_change,
                 "signature": self.signature, "signature_text": self.signature_text,
-                "seconds": self.fit.seconds + (self.part_fit.seconds if self.part_fit else 0.0) if self.fit else 0.0,
+                "seconds": self.seconds(),
                 "verdict": self.verdict, "accepted": self.accepted}
 
 
@@ -1578,7 +1590,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 for c in results:
                     c.accepted = False
                     c.verdict += "; not judged to the end: the time budget ran out during this step"
-                    c.fit = c.part_fit = None
+                    c.forget_curves()
                 stop = out_of_budget(f"while the candidates of step {len(steps)} were fitted")
                 break
             win = results[0]
@@ -1587,7 +1599,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             if not win.accepted:
                 stop = "no candidate earns its parameters"
                 for c in results:
-                    c.fit = c.part_fit = None
+                    c.forget_curves()
                 break
             step.effect = win.effect
             if win.effect == "slack":
@@ -1603,7 +1615,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             fits.append(cur)
             for c in results:                       # fitted curves of the winner only
                 if c is not win:
-                    c.fit = c.part_fit = None
+                    c.forget_curves()
             # does an effect added earlier still earn its parameters next to the new one?
             for e in [x for x in cur.effects if x not in base_effects and x != win.effect]:
                 red = _without(cur.spec, e).for_experiment(trace.experiment)
