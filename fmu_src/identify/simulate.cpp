@@ -295,7 +295,7 @@ bool simulate(const Prepared &p, const tether_model &M0, double *out, std::strin
     //    period just run the periodic solution itself), to periodic_tol of each state's largest
     //    magnitude over the period (at least its nominal scale), with the remaining transient
     //    extrapolated from the last two periods' changes (d / (1 - d / d_previous)); not used with
-    //    the Kawabata law, whose reversal memory is a state this comparison does not see;
+    //    the Kawabata and Iwan laws, whose reversal memory is a state this comparison does not see;
     //  - or one period's output equals the previous one's to periodic_tol of its largest |output|.
     // The period that passed is the record's first period; the rest of the record continues from
     // there. A damped system whose transient dies within one period needs two periods.
@@ -304,7 +304,7 @@ bool simulate(const Prepared &p, const tether_model &M0, double *out, std::strin
         constexpr int NS = TETHER_NUMBER_OF_STATES;
         const double tol = e.periodic_tol > 0 ? e.periodic_tol : 1e-7;
         const int max_periods = e.periodic_max_periods > 0 ? e.periodic_max_periods : 400;
-        const bool state_test = M.p.hysteresis != HYSTERESIS_KAWABATA;
+        const bool state_test = M.p.hysteresis != HYSTERESIS_KAWABATA && M.p.hysteresis != HYSTERESIS_IWAN;
         double nominal[NS];
         tether_nominals(&M, nominal);
         double d_previous = -1.0;

@@ -75,6 +75,28 @@ double boucwen_rate(const tether_params *p, double x, double xdot, double z);
  * from a measured path by equation error. */
 void boucwen_path(double A, double beta, double gamma, const double *x, int n, int periodic, double *z);
 
+/* ---- Iwan hysteresis (inter-fibre friction; ours: the paper fits Bouc-Wen) ---------------- */
+/* Parallel Jenkins elements (spring k_i [N] in series with a slider that slips at the spring
+ * strain eps_i), in parallel with the elastic law; elements with k_i = 0 are absent. */
+#define IWAN_ELEMENTS 8
+typedef struct {
+    int direction;            /* +1 loading, -1 unloading */
+    double eps_ref;           /* strain of the last turning point (or where the bank was unloaded) */
+    double q[IWAN_ELEMENTS];  /* spring strain of each element at eps_ref */
+} iwan_memory;
+
+void iwan_elements(const tether_params *p, double k[IWAN_ELEMENTS], double slip[IWAN_ELEMENTS]);
+/* all springs unloaded at the strain eps_unloaded, loading */
+void iwan_reset(iwan_memory *mem, double eps_unloaded);
+/* force of the bank at strain eps, reached monotonically from the last turning point */
+double iwan_force(const tether_params *p, const iwan_memory *mem, double eps);
+/* dH/deps in the current direction */
+double iwan_stiffness(const tether_params *p, const iwan_memory *mem, double eps);
+/* move monotonically to eps and take it as the new reference (the direction is kept) */
+void iwan_advance(const tether_params *p, iwan_memory *mem, double eps);
+/* a turning point at eps: advance to it and reverse the direction */
+void iwan_reverse(const tether_params *p, iwan_memory *mem, double eps);
+
 /* ---- creep (paper: three stages; the law is ours) ----------------------------------------- */
 #define CREEP_KELVIN_CELLS 3
 typedef struct {

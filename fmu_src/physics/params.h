@@ -8,7 +8,7 @@
 typedef enum { RIG_ELEMENT = 1, RIG_PAYLOAD = 2, RIG_LOAD = 3 } tether_rig;
 typedef enum { STIFFNESS_LINEAR = 1, STIFFNESS_CUBIC = 2 } stiffness_law;
 typedef enum { DAMPING_VISCOUS = 1, DAMPING_DISPLACEMENT = 2 } damping_law;
-typedef enum { HYSTERESIS_NONE = 1, HYSTERESIS_KAWABATA = 2, HYSTERESIS_BOUCWEN = 3 } hysteresis_law;
+typedef enum { HYSTERESIS_NONE = 1, HYSTERESIS_KAWABATA = 2, HYSTERESIS_BOUCWEN = 3, HYSTERESIS_IWAN = 4 } hysteresis_law;
 typedef enum { INTEGRATOR_AUTO = 1, INTEGRATOR_BDF = 2, INTEGRATOR_ADAMS = 3 } integrator_choice;
 
 typedef struct {
@@ -28,6 +28,9 @@ typedef struct {
     double kaw_LT, kaw_RT, kaw_eps_ref, kaw_F_ref, kaw_residual;
     /* Bouc-Wen */
     double bw_A, bw_beta, bw_gamma, bw_n, bw_b2, bw_b3, bw_b4, bw_b5, bw_b6, z0;
+    /* Iwan: element stiffnesses [N] and slip strains */
+    double iw_k1, iw_k2, iw_k3, iw_k4, iw_k5, iw_k6, iw_k7, iw_k8;
+    double iw_eps1, iw_eps2, iw_eps3, iw_eps4, iw_eps5, iw_eps6, iw_eps7, iw_eps8;
     /* creep: recoverable Kelvin cells and unrecoverable slip */
     double creep_J1, creep_tau1, creep_J2, creep_tau2, creep_J3, creep_tau3;
     double slip_capacity0, slip_rate, slip_knee, slip_load_half, slip_load_exponent;

@@ -8,6 +8,7 @@
 /* quantities that follow from the states at one instant */
 typedef struct {
     double L0, u, udot, x, eps_c, eps_m, F, z, c, T_raw, T, eps_m_rate, eps_m_rate_load;
+    double eps_h, eps_h_rate; /* the strain the hysteresis sees (Kawabata, Iwan) and its rate */
     creep_state creep, creep_rate;
 } tether_instant;
 
@@ -57,6 +58,46 @@ static double static_stiffness(const tether_model *M, double eps_m)
     return elastic_stiffness(&M->p, eps_m);
 }
 
+/* the strain the Iwan elements see: a slack tether is shortened, not compressed, so its fibres
+ * stay at zero strain and the friction between them sees no motion */
+static double iwan_strain(const tether_model *M, double eps_m)
+{
+    return (slack_active(M) && eps_m < 0.0) ? 0.0 : eps_m;
+}
+
+/* The strain at which the elastic law and the Iwan elements on their current branch carry T:
+ * F(eps) + H(eps) = T, rising in eps on the elastic law's rising part. Safeguarded Newton in a
+ * bracket grown from eps_guess. Returns 0, or -1 if no strain up to the rising limit carries T. */
+static int iwan_rig_strain_at(const tether_model *M, double T, double eps_guess, double *eps)
+{
+    const tether_params *p = &M->p;
+    const double top = elastic_rising_limit(p);
+#define G(e) (elastic_tension(p, (e)) + iwan_force(p, &M->d.iwan, (e)) - T)
+    double lo = eps_guess, hi = eps_guess, step = 1e-6;
+    if (lo > top) lo = hi = top;
+    if (G(lo) > 0.0) {
+        do { lo -= step; step *= 2.0; } while (G(lo) > 0.0 && step < 1e6);
+    } else {
+        do {
+            hi += step; step *= 2.0;
+            if (hi >= top) { hi = top; if (G(hi) < 0.0) return -1; break; }
+        } while (G(hi) < 0.0 && step < 1e6);
+    }
+    double e = 0.5 * (lo + hi);
+    for (int it = 0; it < 200 && hi - lo > 1e-15 * (1.0 + fabs(e)); ++it) {
+        const double g = G(e);
+        if (g == 0.0) break;
+        if (g > 0.0) hi = e; else lo = e;
+        const double K = elastic_stiffness(p, e) + iwan_stiffness(p, &M->d.iwan, e);
+        double next = K > 0.0 ? e - g / K : 0.5 * (lo + hi);
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        e = next;
+    }
+#undef G
+    *eps = e;
+    return 0;
+}
+
 /* a stiffness scale of the static law, to keep the load rig's tracking well posed where the
  * tangent stiffness vanishes (the Kawabata branches at their ends) */
 static double stiffness_scale(const tether_model *M)
@@ -99,7 +140,10 @@ static void evaluate(const tether_model *M, double t, const double *y, tether_in
     }
     s->eps_m = s->u / s->L0 - s->eps_c;
     s->F = static_tension(M, s->eps_m);
-    s->z = p->hysteresis == HYSTERESIS_BOUCWEN ? y[ST_HYSTERETIC_FORCE] : 0.0;
+    s->eps_h = p->hysteresis == HYSTERESIS_IWAN ? iwan_strain(M, s->eps_m) : s->eps_m;
+    if (p->hysteresis == HYSTERESIS_BOUCWEN) s->z = y[ST_HYSTERETIC_FORCE];
+    else if (p->hysteresis == HYSTERESIS_IWAN) s->z = iwan_force(p, &M->d.iwan, s->eps_h);
+    else s->z = 0.0;
     s->c = damping_coefficient(p, s->x, s->udot);
     if (p->rig == RIG_LOAD) {
         /* quasi-static: the mechanical strain follows T = F(eps_m) + z; see tether.h */
@@ -123,6 +167,8 @@ static void evaluate(const tether_model *M, double t, const double *y, tether_in
             double target;
             if (p->hysteresis == HYSTERESIS_KAWABATA) {
                 target = kawabata_strain_at(p, &M->d.kawabata, ahead);
+            } else if (p->hysteresis == HYSTERESIS_IWAN) {
+                if (iwan_rig_strain_at(M, ahead, s->eps_m, &target) != 0) target = elastic_rising_limit(p);
             } else if (elastic_strain_at(p, ahead, &target) != 0) {
                 target = elastic_rising_limit(p);
             }
@@ -141,6 +187,7 @@ static void evaluate(const tether_model *M, double t, const double *y, tether_in
     } else {
         s->eps_m_rate = s->udot / s->L0 - eps_c_rate;
     }
+    s->eps_h_rate = (p->hysteresis == HYSTERESIS_IWAN && slack_active(M) && s->eps_m < 0.0) ? 0.0 : s->eps_m_rate;
 }
 
 int tether_check(const tether_model *M, char *msg, size_t len)
@@ -150,7 +197,7 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (p->rig < RIG_ELEMENT || p->rig > RIG_LOAD) FAIL("rig = %d: expected 1 (element), 2 (payload) or 3 (load)", p->rig);
     if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_CUBIC) FAIL("stiffness = %d: expected 1 (linear) or 2 (cubic)", p->stiffness);
     if (p->damping < DAMPING_VISCOUS || p->damping > DAMPING_DISPLACEMENT) FAIL("damping = %d: expected 1 (viscous) or 2 (displacement)", p->damping);
-    if (p->hysteresis < HYSTERESIS_NONE || p->hysteresis > HYSTERESIS_BOUCWEN) FAIL("hysteresis = %d: expected 1 (none), 2 (kawabata) or 3 (boucwen)", p->hysteresis);
+    if (p->hysteresis < HYSTERESIS_NONE || p->hysteresis > HYSTERESIS_IWAN) FAIL("hysteresis = %d: expected 1 (none), 2 (kawabata), 3 (boucwen) or 4 (iwan)", p->hysteresis);
     if (p->integrator < INTEGRATOR_AUTO || p->integrator > INTEGRATOR_ADAMS) FAIL("integrator = %d: expected 1 (auto), 2 (bdf) or 3 (adams)", p->integrator);
     if (!(p->rtol >= 1e-14 && p->rtol <= 1e-2)) FAIL("rtol = %g: expected a relative tolerance in [1e-14, 1e-2]", p->rtol);
     if (!(M->in.L0 > 0.0) || !isfinite(M->in.L0)) FAIL("L0 = %g m: the natural length must be positive", M->in.L0);
@@ -174,6 +221,15 @@ int tether_check(const tether_model *M, char *msg, size_t len)
                  kawabata_unloading_exponent(p));
     }
     if (p->hysteresis == HYSTERESIS_BOUCWEN && !(p->bw_n > 0.0)) FAIL("bw_n = %g: expected n > 0", p->bw_n);
+    if (p->hysteresis == HYSTERESIS_IWAN) {
+        double k[IWAN_ELEMENTS], slip[IWAN_ELEMENTS];
+        iwan_elements(p, k, slip);
+        for (int i = 0; i < IWAN_ELEMENTS; ++i) {
+            if (!(k[i] >= 0.0) || !isfinite(k[i])) FAIL("iw_k%d = %g N: expected an element stiffness >= 0 (0: no element)", i + 1, k[i]);
+            if (k[i] > 0.0 && !(slip[i] > 0.0 && isfinite(slip[i])))
+                FAIL("iw_eps%d = %g with iw_k%d = %g N: expected a positive slip strain", i + 1, slip[i], i + 1, k[i]);
+        }
+    }
     if (p->creep) {
         const double taus[3] = {p->creep_tau1, p->creep_tau2, p->creep_tau3};
         const double Js[3] = {p->creep_J1, p->creep_J2, p->creep_J3};
@@ -210,6 +266,7 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
     if (tether_check(M, msg, len) != 0) return -1;
     memset(y, 0, sizeof(double) * TETHER_NUMBER_OF_STATES);
     kawabata_reset(&M->d.kawabata);
+    iwan_reset(&M->d.iwan, 0.0);
     M->d.balance_elongation = 0.0;
     M->d.warned_rising_limit = 0;
     const double z0 = p->hysteresis == HYSTERESIS_BOUCWEN ? p->z0 : 0.0;
@@ -225,6 +282,14 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
         M->d.balance_elongation = eps * M->in.L0;
         y[ST_DISPLACEMENT] = p->x0;
         y[ST_VELOCITY] = p->v0;
+        if (p->hysteresis == HYSTERESIS_IWAN) {
+            /* the elements are unloaded at the balance (a tether shaken down under its payload);
+             * the payload is then displaced to x0 monotonically */
+            const double eps0 = iwan_strain(M, (M->d.balance_elongation + p->x0) / M->in.L0);
+            iwan_reset(&M->d.iwan, iwan_strain(M, eps));
+            iwan_advance(p, &M->d.iwan, eps0);
+            M->d.iwan.direction = p->x0 >= 0.0 ? 1 : -1;
+        }
     } else if (p->rig == RIG_LOAD) {
         const double T0 = input_load(M, t0) - z0;
         if (static_strain_at(M, T0, &eps) != 0) {
@@ -232,7 +297,17 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
                      input_load(M, t0), elastic_tension(p, elastic_rising_limit(p)), elastic_rising_limit(p));
             return -1;
         }
+        if (p->hysteresis == HYSTERESIS_IWAN) {
+            /* a virgin tether, its elements unloaded at zero strain, loaded to the first load */
+            if (T0 > 0.0 && iwan_rig_strain_at(M, T0, eps, &eps) != 0) eps = elastic_rising_limit(p);
+            iwan_advance(p, &M->d.iwan, eps);
+        }
         y[ST_LOAD_ELONGATION] = eps * M->in.L0;
+    } else if (p->hysteresis == HYSTERESIS_IWAN) {
+        /* element rig: unloaded at zero strain, brought to the first elongation monotonically */
+        const double eps0 = iwan_strain(M, M->in.elongation / M->in.L0);
+        iwan_advance(p, &M->d.iwan, eps0);
+        M->d.iwan.direction = eps0 >= 0.0 ? 1 : -1;
     }
     y[ST_HYSTERETIC_FORCE] = z0;
     y[ST_CAPACITY] = p->creep ? p->slip_capacity0 : 0.0;
@@ -291,6 +366,8 @@ void tether_event_indicators(const tether_model *M, double t, const double *y, d
         double eb;
         if (kawabata_target(k, &eb)) g[EV_KAWABATA_TARGET] = k->direction * (eb - s.eps_m);
     }
+    if (M->p.hysteresis == HYSTERESIS_IWAN)
+        g[EV_KAWABATA_RATE] = M->d.iwan.direction * s.eps_h_rate + TETHER_REVERSAL_RATE_BAND;
 }
 
 int tether_event_update(tether_model *M, double t, const double *y, char *msg, size_t len)
@@ -325,6 +402,17 @@ int tether_event_update(tether_model *M, double t, const double *y, char *msg, s
             } else {
                 break;
             }
+        }
+    }
+    if (M->p.hysteresis == HYSTERESIS_IWAN) {
+        tether_instant s;
+        evaluate(M, t, y, &s);
+        iwan_memory *w = &M->d.iwan;
+        if (w->direction * s.eps_h_rate <= -TETHER_REVERSAL_RATE_BAND) {
+            iwan_reverse(&M->p, w, s.eps_h);
+            NOTE("t = %.17g s: Iwan reversal to %s at strain %.9g, friction force %.9g N. ", t,
+                 w->direction > 0 ? "reloading" : "unloading", s.eps_h, s.z);
+            ++switches;
         }
     }
     if (slack_active(M)) {

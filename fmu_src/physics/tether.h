@@ -1,9 +1,10 @@
 /* The tether model: the laws of laws.h assembled into one of three rigs, as a hybrid ODE
  * (continuous states, event indicators, discrete modes). Knows nothing of FMI or of the solver.
  *
- * The tether is a mechanical element (elastic or Kawabata law, Bouc-Wen force z, damper) in series
- * with a creep element (Kelvin cells and slip), all per unit length:
+ * The tether is a mechanical element (elastic or Kawabata law, Bouc-Wen force z or Iwan force H,
+ * damper) in series with a creep element (Kelvin cells and slip), all per unit length:
  *   eps = u / L0 = eps_m + eps_c,    T = F(eps_m) + z + c(x) u'   (clamped at 0 when slack)
+ * with z = H(eps_m) for the Iwan law (its elements see the strain held at zero while slack).
  * u is the elongation, eps_m the mechanical strain, eps_c the creep strain, x the displacement
  * that the damping and the Bouc-Wen sign terms see (the payload's displacement from balance in
  * the payload rig, the elongation in the others). The damper acts on the total elongation rate.
@@ -17,7 +18,8 @@
  *            Without Bouc-Wen the static law is inverted on its branch and the strain relaxes to
  *            the strain that carries the load one tracking time ahead,
  *            eps_m' = (eps*(T + tau T') - eps_m) / tau (exact at every hold, no lag on a ramp,
- *            bounded where a Kawabata branch starts flat); with Bouc-Wen it follows the tangent,
+ *            bounded where a Kawabata branch starts flat; with Iwan, eps* solves F + H = T on the
+ *            current branch); with Bouc-Wen it follows the tangent,
  *            eps_m' = (T' + (T - F - z) / tau) / (dF/deps_m + dz/deps_m).
  *            T' comes from the input's derivatives; tau = TETHER_LOAD_TRACKING_TIME.
  */
@@ -47,7 +49,7 @@ enum {
 enum {
     EV_SLACK_STRAIN,   /* mechanical strain crosses zero (slack entry/exit) */
     EV_SLACK_TENSION,  /* the unclamped tension crosses zero (slack entry/exit) */
-    EV_KAWABATA_RATE,  /* the strain rate changes sign (Kawabata reversal) */
+    EV_KAWABATA_RATE,  /* the strain rate changes sign (Kawabata or Iwan reversal) */
     EV_KAWABATA_TARGET,/* the branch reaches the turning point it runs to (Kawabata rejoin) */
     TETHER_NUMBER_OF_EVENT_INDICATORS
 };
@@ -57,6 +59,7 @@ enum {
 typedef struct {
     int taut;                 /* 1 while the tether carries tension (slack on) */
     kawabata_memory kawabata; /* reversal memory */
+    iwan_memory iwan;         /* the Iwan elements' spring strains at the last reversal */
     double balance_elongation;/* u_bal, payload rig */
     int warned_rising_limit;  /* the cubic was reported outside its rising range */
 } tether_discrete;
