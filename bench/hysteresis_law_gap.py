@@ -18,6 +18,10 @@ two virgin curves:
   phi(d) = K d (1 - b/(b+1) (d/e_max)^(1/b)) below e_max, K e_max/(b+1) above (K, e_max, b):
   the generator's law in the limit of many elements, so the figure says what a law of that
   family reaches, not what an independent law reaches;
+* ``pi``: Prandtl-Ishlinskii, eight Jenkins elements of free stiffness on a fixed geometric grid
+  of slip strains (ratio 0.55, the largest free): the general Masing law the FMU gained as
+  ``hysteresis = iwan`` (physics/iwan.c), not the generator's twelve equal elements on a power-law
+  spread;
 
 and, as a check of this bench's own integrator (fixed-step RK4, four steps per sample, reversals
 at the step where the strain rate changes sign), the generator's hidden law itself, which must
@@ -26,7 +30,8 @@ the current branch); payload records by integrating the payload's equation of mo
 hysteretic element unloaded at the static balance (as the generator's) and held at zero strain
 while the tether is slack.
 
-    python bench/hysteresis_law_gap.py TRACE [TRACE ...]   (TRACE: a stem of NAME.csv + NAME.json)
+    python bench/hysteresis_law_gap.py [--laws=check,tanh,mp,iwan,pi] TRACE [TRACE ...]
+    (TRACE: a stem of NAME.csv + NAME.json)
 
 Prints per record and law the RMS error over the noise (the generator's sigma where the JSON has
 it, else the data's estimate) and the fitted values. About a minute per law for a 10 s record at
@@ -42,6 +47,10 @@ tanh reaches the same 1.56 on record 10 from three starts (r 0.5, 1, 0.7): the f
 a local minimum. A generic saturating curve closes part of the gap; what closes it is a curve whose
 tangent falls to zero at a finite strain (the continuous Iwan's), which is the generator's own
 family and would make the tests judge the FMU against its own law.
+
+The general law of that kind, eight elements of free stiffness on a grid (``pi``, 2026-11-25):
+record 10 1.21 x noise (20 s), 42 1.05 (701 s), 29 4.43 (485 s; this bench's least squares from
+one start: the FMU's fit of the same law reaches 4.8 on the grid). Chosen: the FMU's Iwan law.
 """
 from __future__ import annotations
 
@@ -79,6 +88,23 @@ def virgin_iwan(K, emax, b):
     def phi(d):
         a = np.minimum(np.abs(d), emax)
         return np.sign(d) * K * a * (1.0 - b / (b + 1.0) * (a / emax) ** (1.0 / b))
+    return phi
+
+
+PI_ELEMENTS = 8
+PI_RATIO = 0.55
+
+
+def virgin_pi(emax, *w):
+    """Prandtl-Ishlinskii (discrete Iwan): Jenkins elements of stiffness w_i slipping at the fixed
+    geometric grid of strains e_i = emax PI_RATIO^(n-1-i); any Masing law with a virgin curve whose
+    tangent falls stepwise, the general form of a bank of inter-fibre friction contacts."""
+    e = emax * PI_RATIO ** np.arange(len(w) - 1, -1, -1)
+    w = np.asarray(w, float)
+
+    def phi(d):
+        d = np.asarray(d, float)
+        return np.sign(d) * (w * np.minimum(np.abs(d)[..., None], e)).sum(-1)
     return phi
 
 
@@ -195,7 +221,12 @@ def main(argv=None) -> int:
     from tether.fit import fit_traces
     from tether.traces import read_trace
 
-    stems = (argv if argv is not None else sys.argv[1:])
+    args = list(argv if argv is not None else sys.argv[1:])
+    keys = {"check", "tanh", "mp", "iwan", "pi"}
+    for a in [a for a in args if a.startswith("--laws=")]:
+        keys = set(a.split("=", 1)[1].split(","))
+        args.remove(a)
+    stems = args
     if not stems:
         print(__doc__)
         return 2
@@ -209,11 +240,15 @@ def main(argv=None) -> int:
         print(f"{tr.name} ({tr.experiment}, {len(tr.time)} samples): linear fit {lin.rms / sigma:.2f} x noise")
         laws = []
         if hidden.get("laws", {}).get("hysteresis") == "iwan":
-            laws.append(("generator's Iwan (check)", None, None))
-        laws += [("Masing, tanh virgin curve", virgin_tanh, [0.3 * EA0, 2.0, 2.0]),
-                 ("Masing, Menegotto-Pinto", virgin_menegotto_pinto, [0.3 * EA0, 2.0, 1.0]),
-                 ("Masing, continuous Iwan", virgin_iwan, [0.3 * EA0, 0.005, 1.0])]
-        for label, law, p0 in laws:
+            laws.append(("check", "generator's Iwan (check)", None, None))
+        laws += [("tanh", "Masing, tanh virgin curve", virgin_tanh, [0.3 * EA0, 2.0, 2.0]),
+                 ("mp", "Masing, Menegotto-Pinto", virgin_menegotto_pinto, [0.3 * EA0, 2.0, 1.0]),
+                 ("iwan", "Masing, continuous Iwan", virgin_iwan, [0.3 * EA0, 0.005, 1.0]),
+                 ("pi", f"Prandtl-Ishlinskii, {PI_ELEMENTS} el.", virgin_pi,
+                  [0.005] + [0.3 * EA0 / PI_ELEMENTS] * PI_ELEMENTS)]
+        for key, label, law, p0 in laws:
+            if key not in keys:
+                continue
             t0 = time.perf_counter()
             if law is None:
                 P = hidden["params"]
@@ -228,8 +263,8 @@ def main(argv=None) -> int:
                 q0 = np.log([EA0] + p0)
 
                 def res(q):
-                    p = np.exp(q[:4])
-                    return (simulate_load(tr, p[0], law(*p[1:])) + q[4] - tr.measured) / sigma
+                    p = np.exp(q[:-1])
+                    return (simulate_load(tr, p[0], law(*p[1:])) + q[-1] - tr.measured) / sigma
                 q0 = np.r_[q0, 0.0]
             else:
                 q0 = np.log([EA0, max(c00, 1e-3)] + p0)
