@@ -39,7 +39,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .models import ModelSpec, parse_model
+from .models import IWAN_EPS, IWAN_K, ModelSpec, parse_model
 from .traces import Trace
 
 #: candidate effects per experiment (what the experiment can reveal), in the order they are tried
@@ -57,6 +57,9 @@ CANDIDATES = {
 SHAPE_TERMS = {
     ("hysteresis", "boucwen"): (("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
                                 ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")),
+    # the Iwan bank's slip strains, off the fit's grid (a load test of twelve elements slipping
+    # between 4e-4 and 8e-3: 3.7 x noise on the grid, 1.2 x with the slip strains free)
+    ("hysteresis", "iwan"): (IWAN_EPS,),
     # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
     ("nonlinear_damping", "displacement"): (("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
                                              "c_table_6"),),
@@ -82,7 +85,7 @@ SHAPE_REPLACES = {"c_table_1": ("c_drag", "c1", "c2")}
 #: 25 N s/m^2) and every shape term (e.g. the table's knots a part of the record does not reach)
 HELD_AT_START = tuple(dict.fromkeys(
     SHAPE_HELD + tuple(r for rs in SHAPE_REPLACES.values() for r in rs)
-    + tuple(k for groups in SHAPE_TERMS.values() for g in groups for k in g)))
+    + tuple(k for groups in SHAPE_TERMS.values() for g in groups for k in g) + IWAN_EPS))
 
 
 def _replaced(group: Sequence[str]) -> tuple:
@@ -376,7 +379,8 @@ class ModelFit:
 def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
     """What a discovery fit frees: the elastic law (EA; a1 a2 a3; Kawabata's LT RT F_ref and, in
     load tests, the residual strain), the damping in the payload rig (c0; c1 c2), Bouc-Wen's A beta
-    gamma, and the creep compliances and slip (creep_J1..3, slip_capacity0, slip_rate). Unlike
+    gamma, the Iwan element stiffnesses (iw_k1..8, on the estimate's grid of slip strains), and the
+    creep compliances and slip (creep_J1..3, slip_capacity0, slip_rate). Unlike
     tether.fit's defaults, a creep test frees the cubic too: two load levels leave one direction of
     it undetermined, but discovery asks only whether the law lowers the error."""
     from .fit import CREEP_FREE, law_free_parameters
@@ -405,7 +409,7 @@ def _floor(name: str, sc: _Scales) -> float:
 
 _POSITIVE = ("EA", "a1", "c0", "c1", "c2", "c_drag", "bw_A", "kaw_F_ref", "creep_J1", "creep_J2", "creep_J3",
              "slip_capacity0", "slip_rate", "creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau",
-             "slip_limit", "slip_load_half")
+             "slip_limit", "slip_load_half", *IWAN_K)
 
 
 def _clean_start(names: Sequence[str], start: dict, sc: _Scales) -> dict:
@@ -700,6 +704,10 @@ def candidate_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace |
         w = _scale_elastic(warm, 0.97)
         w.update(_boucwen_start(sc, 0.03, 0.5))
         starts += [w, None]
+    elif new.hysteresis == "iwan" and old.hysteresis != "iwan":
+        # the equation-error estimate of the bank (tether.fit: the element stiffnesses of a grid
+        # of slip strains by non-negative least squares along the measured path)
+        starts.append(None)
     elif new.creep and not old.creep:
         for f in (1.0, 0.01):
             w = dict(warm)
@@ -1131,13 +1139,18 @@ def candidates(trace: Trace) -> tuple[str, ...]:
 
 
 def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
-    """The models that add ``effect`` to ``spec``: one law per effect, but hysteresis in a load
-    test has two, the Bouc-Wen force and the paper's Kawabata branches (which replace the elastic
-    law: their loading curve is a power law)."""
+    """The models that add ``effect`` to ``spec``: one law per effect, but hysteresis has two, the
+    paper's Bouc-Wen force and the Iwan bank of inter-fibre friction (Bouc-Wen's tangent stiffness
+    approaches zero exponentially, friction's falls to zero at a finite strain: on records of the
+    latter Bouc-Wen left 3.4-10 x noise, bench/hysteresis_law_gap.py), and in a load test a third,
+    the paper's Kawabata branches (which replace the elastic law: their loading curve is a power
+    law)."""
     from dataclasses import replace
 
     new = _model_for(spec, effect)
     out = [new] if new is not None else []
+    if effect == "hysteresis" and spec.hysteresis == "none":
+        out.append(replace(spec, hysteresis="iwan"))
     if effect == "hysteresis" and spec.hysteresis == "none" and trace.rig != "payload":
         out.append(replace(spec, hysteresis="kawabata"))
     if effect == "nonlinear_stiffness" and spec.hysteresis == "kawabata":
@@ -1539,8 +1552,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 say(f"  + {cr.effect} (table of c(x)): RMS error {tf.rms / sigma:.2f} x noise with {dk} more "
                     f"parameters ({tf.seconds:.1f} s)")
                 results.append(ct)
-            # an effect with two laws (hysteresis in a load test: Bouc-Wen or Kawabata) competes with
-            # the better of them
+            # an effect with several laws (hysteresis: Bouc-Wen or Iwan, in a load test Kawabata too)
+            # competes with the best of them
             best_of: dict[str, CandidateResult] = {}
             for c in results:
                 b = best_of.get(c.effect)

@@ -44,7 +44,7 @@ from typing import Callable, Iterable, Mapping, Sequence
 import numpy as np
 
 from . import identify_native as idn
-from .models import ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model, write_params
+from .models import IWAN_EPS, IWAN_K, ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model, write_params
 from .run import _input_pieces, input_interpolation
 from .traces import Trace, read_trace
 
@@ -142,7 +142,7 @@ class FitProgress:
 #: fitted on a log scale (one sign; the engine's steps are relative)
 _LOG = {"EA", "a1", "c0", "bw_A", "kaw_F_ref", "kaw_eps_ref", "creep_J1", "creep_J2", "creep_J3", "creep_tau1",
         "creep_tau2", "creep_tau3", "slip_capacity0", "slip_rate", "slip_knee", "slip_load_half",
-        "slip_load_exponent", "slip_regen_tau", "slip_limit"}
+        "slip_load_exponent", "slip_regen_tau", "slip_limit", *IWAN_K}
 #: the elastic law and viscous damping: the first stage
 _BASE = {"EA", "a1", "a2", "a3", "c0", "kaw_LT", "kaw_RT", "kaw_F_ref", "kaw_residual", "kaw_eps_ref"}
 #: the creep terms a fit frees by default: the Kelvin compliances and the slip
@@ -161,7 +161,9 @@ def default_free_parameters(spec, experiment: str) -> list[str]:
     the virgin curve through (eps_ref, F_ref) is one curve, a point on it is one number).
     Damping (payload rig only; quasi-static load tests do not see it): ``c0``, plus ``c1 c2`` for
     displacement-dependent damping. Bouc-Wen: ``bw_A bw_beta bw_gamma`` (the force scale is fixed by
-    the law; ``bw_n`` stays at its value and the shape terms ``bw_b2..b6`` at 0). Creep (creep tests
+    the law; ``bw_n`` stays at its value and the shape terms ``bw_b2..b6`` at 0). Iwan: the element
+    stiffnesses ``iw_k1..8`` (their slip strains stay on the grid the estimate chose, see
+    iwan_slip_grid). Creep (creep tests
     only; seconds of vibration do not see it): the Kelvin compliances ``creep_J1..3`` (time
     constants fixed at their values, spanning minutes to days) and the slip ``slip_capacity0``,
     ``slip_rate``; a creep test holds two load levels, which determine ``EA`` but not a cubic or
@@ -194,6 +196,8 @@ def law_free_parameters(spec: ModelSpec, elastic: bool = True) -> list[str]:
         names += ["c0"] + (["c1", "c2"] if spec.damping == "displacement" else [])
     if spec.hysteresis == "boucwen":
         names += ["bw_A", "bw_beta", "bw_gamma"]
+    if spec.hysteresis == "iwan":
+        names += list(IWAN_K)
     return names
 
 
@@ -354,6 +358,79 @@ def _cubic_from_taylor(k1: float, k2: float, k3: float, L0: float, weight: float
     return {"a1": a1, "a2": a2, "a3": a3}
 
 
+#: the Iwan bank of a fit: slip strains on a geometric grid, each IWAN_RATIO of the next, the
+#: largest chosen by the equation error among IWAN_SPANS multiples of half the record's strain
+#: range; the element stiffnesses then enter the equations linearly. An element that never slips
+#: is a spring like the elastic law's: the largest stays within the range (with one at twice it,
+#: a forced record with slack split its stiffness between the two, and the balance, where the
+#: elastic law alone carries the weight, moved three times too low)
+IWAN_RATIO = 0.55
+IWAN_SPANS = (0.25, 0.5, 1.0)
+#: a fit keeps each element's stiffness below this multiple of the tether's estimated stiffness
+IWAN_CAP = 10.0
+
+
+def iwan_slip_grid(e_max: float) -> list[float]:
+    """Slip strains of the eight elements, the largest e_max."""
+    n = len(IWAN_EPS)
+    return [float(e_max * IWAN_RATIO ** (n - 1 - i)) for i in range(n)]
+
+
+def iwan_spring_strains(d: np.ndarray, slip: Sequence[float], periodic: bool = False) -> np.ndarray:
+    """Spring strains of Jenkins elements slipping at ``slip`` along the strain path d (measured from
+    where the springs are unloaded; the first sample reached monotonically from there), the path
+    taken as straight between samples (physics/iwan.c). periodic: the path is one period of a
+    steady cycle, run twice and the second pass kept. Shape (len(d), len(slip))."""
+    d = np.asarray(d, float)
+    e = np.asarray(slip, float)
+    out = np.empty((len(d), len(e)))
+    q = np.clip(d[0], -e, e)
+    for lap in range(2 if periodic else 1):
+        if lap:
+            q = np.clip(q + (d[0] - d[-1]), -e, e)      # the period closes: from its end to its start
+        out[0] = q
+        for j in range(1, len(d)):
+            q = np.minimum(np.maximum(q + (d[j] - d[j - 1]), -e), e)
+            out[j] = q
+    return out
+
+
+def _iwan_bank(A_rest: np.ndarray, lo_rest: Sequence[float], b: np.ndarray, d: np.ndarray, rows: np.ndarray,
+               span: float, periodic: bool) -> tuple[np.ndarray, list[float], np.ndarray] | None:
+    """Equation error of the Iwan bank beside the other linear terms (columns A_rest, lower bounds
+    lo_rest): for each grid of IWAN_SPANS, min |A_rest c + Q k - b| over the rows with k >= 0.
+    Returns (c, k, Q @ k over all samples) of the best grid, or None."""
+    from scipy.optimize import lsq_linear
+
+    best = None
+    for f in IWAN_SPANS:
+        slip = iwan_slip_grid(f * span)
+        Q = iwan_spring_strains(d, slip, periodic)
+        A = np.column_stack([A_rest, Q])[rows]
+        scale = np.linalg.norm(A, axis=0)
+        scale[scale == 0] = 1.0
+        lo = np.r_[np.asarray(lo_rest, float), np.zeros(Q.shape[1])]
+        try:
+            sol = lsq_linear(A / scale, b[rows], bounds=(lo, np.full(len(lo), np.inf)))
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        coef = sol.x / scale
+        rss = float(np.sum((A @ coef - b[rows]) ** 2))
+        if best is None or rss < best[0]:
+            nr = A_rest.shape[1]
+            best = (rss, coef[:nr], slip, coef[nr:], Q @ coef[nr:])
+    if best is None:
+        return None
+    _, c, slip, k, h = best
+    total = float(np.sum(k))
+    floor = 1e-3 * total if total > 0 else 1e-6
+    return c, slip, np.maximum(k, floor), h
+
+
+def _iwan_params(slip: Sequence[float], k: np.ndarray) -> dict:
+    return {**{n: float(v) for n, v in zip(IWAN_K, k)}, **{n: float(v) for n, v in zip(IWAN_EPS, slip)}}
+
+
 def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
     """Equation-error estimates for one payload trace."""
     t = np.asarray(trace.time, float)
@@ -414,6 +491,21 @@ def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
             pA, pb, pg = best.x
             est.update(bw_A=float(pA * sA), bw_beta=float(pb * sb), bw_gamma=float(pg * sb))
             z = idn.bouc_wen_path(xs, est["bw_A"], est["bw_beta"], est["bw_gamma"], K.periodic)
+    if spec.hysteresis == "iwan":
+        # the bank's spring strains along the measured strain path from the balance, where its
+        # springs are unloaded (held at zero strain where a slack tether is shortened): the element
+        # stiffnesses enter linearly, >= 0
+        eps_b = m * g / (k_lin * L0) if k_lin > 0 and g > 0 else 0.0
+        d = K.x / L0
+        if spec.slack:
+            d = np.maximum(d + eps_b, 0.0) - eps_b
+        cols = _damping_columns(K.x, K.v, disp) + _restoring_columns(K.x, cubic)
+        span = 0.5 * float(np.ptp(d[keep])) or 1e-9
+        bank = _iwan_bank(np.column_stack(cols), [-np.inf] * len(cols), rhs_all, d, keep, span, K.periodic)
+        if bank is not None:
+            _, slip, kb, z = bank
+            est.update(_iwan_params(slip, kb))
+            est["_iw_cap"] = IWAN_CAP * (k_lin * L0 + float(np.sum(kb)))
     coef, res = solve(z, keep)
     nd = 3 if disp else 1
     c = [float(v) for v in coef[:nd]]
@@ -570,6 +662,52 @@ def _load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> 
             coef = _scaled_lstsq(np.column_stack([eps, eps ** 2, eps ** 3]), T)
             if coef[0] > 0:
                 est.update(a1=float(coef[0]), a2=float(coef[1]), a3=float(coef[2]))
+    iwan_traces = [tr for tr in traces if tr.experiment == "load_unload"]
+    if spec.hysteresis == "iwan" and iwan_traces:
+        # T = F(eps) + sum k_i q_i along each record's strain path from zero (a virgin tether)
+        rows, cols, Ts, ds, starts = [], [], [], [], [0]
+        for tr in iwan_traces:
+            e = np.asarray(tr.measured, float) / float(tr.length_m)
+            ds.append(e)
+            Ts.append(np.asarray(tr.input, float))
+            starts.append(starts[-1] + len(e))
+        d, Tl = np.concatenate(ds), np.concatenate(Ts)
+        elastic = [d, d ** 2, d ** 3] if spec.stiffness == "cubic" else [d]
+        lo = [0.0] + ([-np.inf, -np.inf] if spec.stiffness == "cubic" else [])
+        ok = np.isfinite(d) & np.isfinite(Tl)
+        span = float(np.max(np.abs(d[ok]))) if ok.any() else 0.0
+        best = None
+        if span > 0:
+            # one path per record: the grid's spring strains record by record
+            def bank_for(f):
+                slip = iwan_slip_grid(f * span)
+                Q = np.vstack([iwan_spring_strains(np.nan_to_num(x), slip) for x in ds])
+                return slip, Q
+            from scipy.optimize import lsq_linear
+            for f in (0.1, 0.2, 0.4, 0.8):
+                slip, Q = bank_for(f)
+                A = np.column_stack(elastic + [Q])[ok]
+                scale = np.linalg.norm(A, axis=0)
+                scale[scale == 0] = 1.0
+                lower = np.r_[lo, np.zeros(Q.shape[1])]
+                sol = lsq_linear(A / scale, Tl[ok], bounds=(lower, np.full(len(lower), np.inf)))
+                coef = sol.x / scale
+                rss = float(np.sum((A @ coef - Tl[ok]) ** 2))
+                if best is None or rss < best[0]:
+                    best = (rss, coef, slip)
+        if best is not None:
+            _, coef, slip = best
+            ne = len(elastic)
+            kb = coef[ne:]
+            total = float(np.sum(kb))
+            kb = np.maximum(kb, 1e-3 * total if total > 0 else 1e-6)
+            est.update(_iwan_params(slip, kb))
+            est["_iw_cap"] = IWAN_CAP * (abs(float(coef[0])) + float(np.sum(kb)))
+            if spec.stiffness == "cubic":
+                if coef[0] > 0:
+                    est.update(a1=float(coef[0]), a2=float(coef[1]), a3=float(coef[2]))
+            elif coef[0] > 0:
+                est["EA"] = float(coef[0])
     if spec.hysteresis == "kawabata":
         cycles = [c for c in (_kawabata_cycle(tr) for tr in traces if tr.experiment == "load_unload") if c]
         if cycles:
@@ -752,6 +890,11 @@ def _bounds_and_start(name: str, start: float, fmu_bounds: dict, scales: dict) -
     hi = math.inf if hi is None else float(hi)
     if name in FIT_RANGES:
         lo, hi = max(lo, FIT_RANGES[name][0]), min(hi, FIT_RANGES[name][1])
+    if name in IWAN_K and scales.get("_iw_cap"):
+        # an element the estimate left near zero has a tiny log-sensitivity: a trial step may
+        # throw it far out, where the tether turns stiff and the simulation crawls (a free
+        # vibration fit spent 25 s on one iteration so)
+        hi = min(hi, float(scales["_iw_cap"]))
     if name in _LOG:
         lo = max(lo, 0.0)
         if not start > 0:
@@ -781,7 +924,8 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
 
     free: names to fit (default: :func:`default_free_parameters` for each trace's experiment,
     united). start: start values (default: :func:`initial_estimate`). fixed: values of parameters
-    that are not fitted (default: the FMU's start values). progress: called with a
+    that are not fitted (default: the FMU's start values; the Iwan slip strains: the estimate's
+    grid, iwan_slip_grid). progress: called with a
     :class:`FitProgress` at every stage and LM iteration. n_starts: starts of the last stage (the
     estimate, then random ones around it). engine_options: kt_fit_options fields (max_iterations,
     fd_step, stat_tol, ...). Raises FitError for bad names and RuntimeError if the engine fails.
@@ -818,8 +962,10 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
         scales["_m"] = float(traces[0].payload_mass_kg)
     defaults = _fmu_defaults()
     fmu_bounds = _fmu_bounds()
-    # every parameter of the model: fixed ones at `fixed` or the FMU's start value
-    model_values = {n: float(fixed.get(n, defaults[n])) for n in spec.parameters if n in defaults}
+    # every parameter of the model: fixed ones at `fixed` or the FMU's start value; the Iwan slip
+    # strains at the grid the estimate chose (its element stiffnesses are fitted on that grid)
+    grid = {n: est[n] for n in IWAN_EPS if n in est}
+    model_values = {n: float(fixed.get(n, grid.get(n, defaults[n]))) for n in spec.parameters if n in defaults}
     x0 = {}
     box = {}
     scaling = {}

@@ -10,11 +10,12 @@ A model is a preset, optionally followed by effects or laws joined with ``+``::
     kawabata                  Kawabata loading/unloading branches + viscous damper
     full                      cubic + Bouc-Wen + displacement-dependent damping (the paper's full model)
 
-    linear+boucwen, simplified+slack, cubic+creep+slack, ...
+    linear+boucwen, linear+iwan, simplified+slack, cubic+creep+slack, ...
 
 Terms after the preset are effect names of the trace format (``nonlinear_stiffness`` = cubic,
 ``hysteresis`` = boucwen, ``nonlinear_damping`` = displacement-dependent damping, ``creep``,
-``slack``) or specific laws (``cubic``, ``boucwen``, ``kawabata``). A string that starts with an
+``slack``) or specific laws (``cubic``, ``boucwen``, ``kawabata``, ``iwan``: inter-fibre friction, a bank
+of Jenkins elements beside the elastic law). A string that starts with an
 effect or a law builds on ``linear``. Names are case-insensitive. Adding something the model
 already has, or two hysteresis laws, or the Kawabata law (which replaces the elastic law) together
 with the cubic law, is an error.
@@ -52,12 +53,12 @@ from typing import Any, Mapping
 RIG = {"element": 1, "payload": 2, "load": 3}
 STIFFNESS = {"linear": 1, "cubic": 2}
 DAMPING = {"viscous": 1, "displacement": 2}
-HYSTERESIS = {"none": 1, "kawabata": 2, "boucwen": 3}
+HYSTERESIS = {"none": 1, "kawabata": 2, "boucwen": 3, "iwan": 4}
 
 #: trace-format effect names, in report order
 EFFECTS = ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "creep", "slack")
 #: law names that may be added with '+'
-LAWS = ("cubic", "boucwen", "kawabata")
+LAWS = ("cubic", "boucwen", "kawabata", "iwan")
 
 #: the structural switches: set by the model string, never by a parameter file
 SWITCHES = ("rig", "stiffness", "damping", "hysteresis", "creep", "slack")
@@ -72,6 +73,10 @@ _PARAMS_VISCOUS = ("c0",)
 _PARAMS_DISPLACEMENT = ("c0", "c1", "c2", "c_table_dx", "c_table_1", "c_table_2", "c_table_3", "c_table_4",
                         "c_table_5", "c_table_6", "c_drag")
 _PARAMS_BOUCWEN = ("bw_A", "bw_beta", "bw_gamma", "bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6", "z0")
+#: the Iwan bank: element stiffnesses, then their slip strains
+IWAN_K = tuple(f"iw_k{i}" for i in range(1, 9))
+IWAN_EPS = tuple(f"iw_eps{i}" for i in range(1, 9))
+_PARAMS_IWAN = IWAN_K + IWAN_EPS
 _PARAMS_KAWABATA = ("kaw_LT", "kaw_RT", "kaw_eps_ref", "kaw_F_ref", "kaw_residual")
 _PARAMS_CREEP = ("creep_J1", "creep_tau1", "creep_J2", "creep_tau2", "creep_J3", "creep_tau3",
                  "slip_capacity0", "slip_rate", "slip_knee", "slip_load_half", "slip_load_exponent",
@@ -92,7 +97,7 @@ class ModelSpec:
 
     stiffness: str = "linear"      # linear | cubic
     damping: str = "viscous"       # viscous | displacement
-    hysteresis: str = "none"       # none | kawabata | boucwen
+    hysteresis: str = "none"       # none | kawabata | boucwen | iwan
     creep: bool = False
     slack: bool = False
     rig: str = "payload"           # element | payload | load (follows the experiment)
@@ -131,6 +136,8 @@ class ModelSpec:
         names += _PARAMS_DISPLACEMENT if self.damping == "displacement" else _PARAMS_VISCOUS
         if self.hysteresis == "boucwen":
             names += _PARAMS_BOUCWEN
+        if self.hysteresis == "iwan":
+            names += _PARAMS_IWAN
         if self.creep:
             names += _PARAMS_CREEP
         return names
@@ -192,6 +199,7 @@ _TERMS: dict[str, tuple[str, Any]] = {
     "hysteresis": ("hysteresis", "boucwen"),
     "boucwen": ("hysteresis", "boucwen"),
     "kawabata": ("hysteresis", "kawabata"),
+    "iwan": ("hysteresis", "iwan"),
     "nonlinear_damping": ("damping", "displacement"),
     "creep": ("creep", True),
     "slack": ("slack", True),
