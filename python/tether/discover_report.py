@@ -135,14 +135,16 @@ def discovery_page(d, doc: dict, images: dict) -> str:
         rounds.append(f"<h3>{head}</h3>{body}{verdict}")
     refined = "".join(
         f"<tr class={'good' if r['accepted'] else 'bad'}><td class=l>{esc(r['effect'])}</td>"
-        f"<td class=l>{esc(' '.join(r['parameters']))}</td><td>{_f(r['rmse_before_over_noise'], '.2f')}</td>"
+        f"<td class=l>{esc(('law ' + r['law'] + ': ') if r.get('law') else '')}{esc(' '.join(r['parameters']))}</td><td>{_f(r['rmse_before_over_noise'], '.2f')}</td>"
         f"<td>{_f(r['rmse_after_over_noise'], '.2f')}</td><td>{_f(r['heldout_rmse_before'] / sigma, '.2f')}</td>"
         f"<td>{_f(r['heldout_rmse_after'] / sigma, '.2f')}</td><td>{_f(r['bic_change'], '.0f')}</td>"
         f"<td class=l>{esc(r['verdict'])}</td></tr>" for r in doc["refinements"])
     if refined:
         refined = ("<h2>The shape of the named laws</h2><p>With the effects named, the shape terms of their laws "
                    "were freed one group at a time (kept when the BIC falls and the held-out part does not get "
-                   "worse; the best group wins). This changes no effect's name.</p><table><tr><th>effect</th>"
+                   "worse; the best group wins), and a hysteresis named before another effect was fitted again "
+                   "with its rival law in its place, kept on the same terms. This changes no effect's name.</p>"
+                   "<table><tr><th>effect</th>"
                    "<th>terms freed</th><th>RMS / σ before</th><th>after</th><th>held-out RMS / σ before</th>"
                    f"<th>after</th><th>ΔBIC</th><th>verdict</th></tr>{refined}</table>")
     added = ", ".join(doc["added_effects"]) or "nothing"
