@@ -1044,7 +1044,10 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
         t_stage = _time.perf_counter()
         r = idn.fit([x.exp for x in exps], fr, scaling={n: scaling[n] for n in names}, progress=cb, **o)
         evaluations += r.evaluations
-        current.update(r.as_dict())
+        # inside the box it was given: a value the engine's scaling maps back from the bound can
+        # round past it (creep_tau1 = 1.0000000000000006e7 against 1e7), and the next fit started
+        # from it would be refused
+        current.update({n: min(max(v, box[n][0]), box[n][1]) for n, v in r.as_dict().items()})
         stage_log.append({"stage": sname, "free": list(names), "rms": math.sqrt(2 * r.cost / n_eff),
                           "evaluations": r.evaluations, "iterations": r.iterations,
                           "seconds": _time.perf_counter() - t_stage, "message": r.message})
