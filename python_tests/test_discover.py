@@ -43,6 +43,15 @@ def _strict(token):
     raise AssertionError(f"not JSON: {token} (a strict parser such as jq refuses it)")
 
 
+def _rerun_rms(run_cli, tmp_path, stem, params, measured) -> float:
+    """RMS error of `tether simulate STEM --params PARAMS` (the FMU) against ``measured``."""
+    sim = tmp_path / "sim.csv"
+    status, _, err = run_cli("simulate", stem, "--params", params, "--out", sim)
+    assert status == 0, err
+    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
+    return float(np.sqrt(np.mean((y - measured) ** 2)))
+
+
 # ---------------------------------------------------------------------------------------------
 # the noise estimate, against the sigma the noise was drawn with
 @pytest.mark.parametrize("sigma", [1e-5, 1e-4, 1e-3])
@@ -163,12 +172,8 @@ def test_shape_refinement_follows_a_damping_that_levels_off(tmp_path, run_cli):
     assert doc["rmse_final"] == pytest.approx(kept[0]["rmse_after"]) and doc["rmse_final"] <= 1.5 * sigma
     assert doc["shape_refined"] == kept[0]["parameters"] and doc["parameters"]["c_table_dx"] > 0
     assert "shape of nonlinear_damping refined" in out
-    sim = tmp_path / "sim.csv"
-    status, _, err = run_cli("simulate", stem, "--params", tmp_path / "forced_levels_off.discovery.json",
-                             "--out", sim)
-    assert status == 0, err
-    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
-    assert float(np.sqrt(np.mean((y - tr.measured) ** 2))) == pytest.approx(doc["rmse_final"], rel=1e-3)
+    rerun = _rerun_rms(run_cli, tmp_path, stem, tmp_path / "forced_levels_off.discovery.json", tr.measured)
+    assert rerun == pytest.approx(doc["rmse_final"], rel=1e-3)
 
 
 def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, capsys):
@@ -237,12 +242,8 @@ def test_a_damping_the_polynomial_follows_in_part_is_named_with_the_table(tmp_pa
     print(f"FIGURE hysteresis + Gaussian damping: rmse_final {doc['rmse_final'] / sigma:.2f} x noise")
     assert doc["rmse_final"] <= 1.8 * sigma
     assert doc["parameters"]["c_table_dx"] > 0 and doc["parameters"]["c1"] == 0.0
-    sim = tmp_path / "sim.csv"
-    status, _, err = run_cli("simulate", stem, "--params", tmp_path / "forced_hyst_gauss.discovery.json",
-                             "--out", sim)
-    assert status == 0, err
-    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
-    assert float(np.sqrt(np.mean((y - tr.measured) ** 2))) == pytest.approx(doc["rmse_final"], rel=1e-3)
+    rerun = _rerun_rms(run_cli, tmp_path, stem, tmp_path / "forced_hyst_gauss.discovery.json", tr.measured)
+    assert rerun == pytest.approx(doc["rmse_final"], rel=1e-3)
 
 
 @pytest.mark.parametrize("effects, acts", [((), False), (("slack",), True)])
@@ -320,19 +321,12 @@ def test_bundled_trace_two_effects_json_report_and_rerun(tmp_path, run_cli):
     other, tr2 = _write(tmp_path, "other", "free_vibration", {"nonlinear_stiffness", "slack"}, 7, noise=1e-4,
                         rate=200.0, duration_s=10.0, stiffness_law="power", x0_m=-0.11)
     assert tr2.meta["hidden"]["params"]["EA_N"] == truth["params"]["EA_N"]
-    sim = tmp_path / "sim.csv"
-    status, _, err = run_cli("simulate", other, "--params", tmp_path / "freevib_hidden.discovery.json", "--out", sim)
-    assert status == 0, err
-    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
-    rms = float(np.sqrt(np.mean((y - tr2.measured) ** 2)))
+    rms = _rerun_rms(run_cli, tmp_path, other, tmp_path / "freevib_hidden.discovery.json", tr2.measured)
     # ... against the linear baseline fitted to the same first record
     lin = tmp_path / "linear.json"
     status, _, err = run_cli("fit", BUNDLED, "--model", "linear", "--out", lin)
     assert status == 0, err
-    status, _, err = run_cli("simulate", other, "--params", lin, "--out", sim)
-    assert status == 0, err
-    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
-    rms_lin = float(np.sqrt(np.mean((y - tr2.measured) ** 2)))
+    rms_lin = _rerun_rms(run_cli, tmp_path, other, lin, tr2.measured)
     # the cubic stands in for the generator's power law: outside the amplitudes it was fitted on it
     # is not at the noise (2.6 sigma), but far nearer the truth than the baseline (> 50 sigma)
     assert rms < 3.0 * sigma and rms < 0.1 * rms_lin, (rms, rms_lin)

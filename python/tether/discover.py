@@ -17,8 +17,10 @@ workflow repeats
 
 until the model reproduces the record to within the noise or no candidate earns its parameters.
 Then, with the effects named, the shape terms of their laws (SHAPE_TERMS: Bouc-Wen's exponent and
-generalized terms, the tabulated part of c(x)) are freed where the model still misses the record, kept only when they lower
-the BIC and do not worsen the held-out prediction; this changes no effect's name.
+generalized terms, the Iwan slip strains, the tabulated part of c(x)) are freed where the model
+still misses the record, kept only when they lower the BIC and do not worsen the held-out
+prediction; and a hysteresis named before another effect is fitted once more with its rival law in
+its place (rival_law), kept on the same terms. This changes no effect's name.
 
 Effects map to model terms as in :mod:`tether.models`: ``nonlinear_stiffness`` -> the cubic law,
 ``hysteresis`` -> a Bouc-Wen force (in load tests also the Kawabata branches, the better of the two),
