@@ -41,7 +41,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .models import IWAN_EPS, IWAN_K, ModelSpec, parse_model
+from .models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K, ModelSpec, parse_model
 from .traces import Trace
 
 #: candidate effects per experiment (what the experiment can reveal), in the order they are tried
@@ -662,7 +662,7 @@ def _boucwen_start(sc: _Scales, share: float, z_share: float) -> dict:
 
 def _scale_elastic(p: dict, factor: float) -> dict:
     q = dict(p)
-    for n in ("EA", "a1", "a2", "a3"):
+    for n in ELASTIC_PARAMETERS:
         if n in q:
             q[n] = q[n] * factor
     return q
@@ -1351,9 +1351,10 @@ class Refinement:
     law: str = ""                   # "boucwen -> iwan": the effect's law replaced by its rival (rival_law)
 
     def as_dict(self, sigma: float) -> dict:
-        return {"effect": self.effect, "law": self.law, "parameters": list(self.parameters), "rmse_before": self.rms_before,
-                "rmse_after": self.rms_after, "rmse_before_over_noise": self.rms_before / sigma,
-                "rmse_after_over_noise": self.rms_after / sigma, "heldout_rmse_before": self.heldout_before,
+        return {"effect": self.effect, "law": self.law, "parameters": list(self.parameters),
+                "rmse_before": self.rms_before, "rmse_after": self.rms_after,
+                "rmse_before_over_noise": self.rms_before / sigma, "rmse_after_over_noise": self.rms_after / sigma,
+                "heldout_rmse_before": self.heldout_before,
                 "heldout_rmse_after": self.heldout_after, "bic_change": self.bic_change,
                 "accepted": self.accepted, "verdict": self.verdict, "values": self.values}
 
@@ -1375,6 +1376,20 @@ def _knots_unseen(part: Trace, extra: Sequence[str], starts: Sequence[dict | Non
 def _shape_groups(cur: ModelFit, skip=frozenset()) -> list:
     """(effect, group) of the shape terms of the named laws (SHAPE_TERMS), less the effects in skip."""
     return [(e, g) for e in cur.effects if e not in skip for g in SHAPE_TERMS.get((e, _law_of(cur.spec, e)), ())]
+
+
+def _heldout_judges(held: float, rms: float) -> bool:
+    """Whether the held-out prediction can judge a shape or a law: the model predicts the held-out
+    part at most SHAPE_HELDOUT_INFORMATIVE times worse than it fits the whole record."""
+    return held <= SHAPE_HELDOUT_INFORMATIVE * rms
+
+
+def _not_kept_for_budget(records) -> None:
+    """Refinements judged while the time budget ran out are kept on record, not in the model."""
+    for r in records:
+        if r.accepted:
+            r.accepted = False
+            r.verdict += "; not kept: the time budget ran out during this stage"
 
 
 def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
@@ -1410,7 +1425,7 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
         held, verdict = float("nan"), ""
         if not (bic < 0.0 and fm.rms < cur.rms):
             verdict = f"BIC changes by {bic:+.1f}: the terms do not earn their place"
-        elif cur_held <= SHAPE_HELDOUT_INFORMATIVE * cur.rms:
+        elif _heldout_judges(cur_held, cur.rms):
             pf = fit(part, cur.spec, cur.effects, [fm.params], extra=group)
             held = _heldout(trace, cur.spec, pf.params, first) if pf.ok else float("inf")
             if not held <= cur_held:
@@ -1440,9 +1455,6 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
 #: the laws of one effect that stand in for each other: the law that won an effect's step is fitted
 #: again at the end with its rival in its place (rival_law)
 RIVAL_LAWS = {"hysteresis": ("boucwen", "iwan")}
-_LAW_TERMS = {"boucwen": ("bw_A", "bw_beta", "bw_gamma", "bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6", "z0"),
-              "iwan": IWAN_K + IWAN_EPS}
-_ELASTIC_TERMS = ("EA", "a1", "a2", "a3")
 
 
 def _law_converted(params: dict, law: str, rival: dict, L0: float) -> dict:
@@ -1488,15 +1500,16 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     if other not in rivals:
         return cur, cur_held, None
     new = replace(cur.spec, hysteresis=other).for_experiment(trace.experiment)
-    mine = {k: v for k, v in cur.params.items() if k in new.parameters and k not in _LAW_TERMS[law]}
-    theirs = {k: v for k, v in rivals[other].items() if k in _LAW_TERMS[other]}
+    mine = {k: v for k, v in cur.params.items() if k in new.parameters and k not in HYSTERESIS_PARAMETERS[law]}
+    theirs = {k: v for k, v in rivals[other].items() if k in HYSTERESIS_PARAMETERS[other]}
+    their_elastic = {k: v for k, v in rivals[other].items() if k in ELASTIC_PARAMETERS and k in new.parameters}
     starts = [{**mine, **theirs},
-              {**mine, **theirs, **{k: v for k, v in rivals[other].items() if k in _ELASTIC_TERMS and k in new.parameters}},
+              {**mine, **theirs, **their_elastic},
               {**mine, **theirs, **_law_converted(cur.params, law, theirs, float(trace.length_m))},
               None]
     fm = fit(trace, new, cur.effects, starts, baseline_rms=cur.rms)
     n = len(trace.time)
-    terms = tuple(k for k in fm.free if k in _LAW_TERMS[other]) if fm.ok else ()
+    terms = tuple(k for k in fm.free if k in HYSTERESIS_PARAMETERS[other]) if fm.ok else ()
     if not fm.ok:
         r = Refinement(effect, terms, cur.rms, float("inf"), cur_held, float("nan"), float("inf"), False,
                        f"the fit failed: {fm.message}", law=f"{law} -> {other}")
@@ -1510,14 +1523,14 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     else:
         pf = fit(part, new, cur.effects, [fm.params])
         held = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
-        if cur_held <= SHAPE_HELDOUT_INFORMATIVE * cur.rms and not held <= cur_held:
+        if _heldout_judges(cur_held, cur.rms) and not held <= cur_held:
             verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC {bic:+.0f}, but the "
                        f"held-out part gets worse: {cur_held / sigma:.2f} -> {held / sigma:.2f} x noise")
     ok = not verdict
     if ok:
         verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC {bic:+.0f}, held-out "
                    f"{cur_held / sigma:.2f} -> {held / sigma:.2f} x noise"
-                   + ("" if cur_held <= SHAPE_HELDOUT_INFORMATIVE * cur.rms else
+                   + ("" if _heldout_judges(cur_held, cur.rms) else
                       f" (not judged on it: the model predicts the held-out part {cur_held / cur.rms:.0f} times "
                       f"worse than it fits the whole record)"))
     r = Refinement(effect, terms, cur.rms, fm.rms, cur_held, held, bic, ok, verdict,
@@ -1761,10 +1774,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                                          skip=refined_effects)
         refinements += refs
         if budget_hit[0]:
-            for r in refs:
-                if r.accepted:
-                    r.accepted = False
-                    r.verdict += "; not kept: the time budget ran out during this stage"
+            _not_kept_for_budget(refs)
             stop += "; " + out_of_budget("while the shapes of the laws were refined")
             break
         if refined is cur:
@@ -1790,8 +1800,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                                                                baseline_rms=baseline_rms),
             rivals["hysteresis"], added, say)
         if rec is not None and budget_hit[0] and rec.accepted:
-            rec.accepted, swapped = False, cur
-            rec.verdict += "; not kept: the time budget ran out during this stage"
+            _not_kept_for_budget([rec])
+            swapped = cur
             stop += "; " + out_of_budget("while the rival law was fitted")
         if rec is not None:
             refinements.append(rec)
@@ -1802,10 +1812,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             refined, _, refs = refine_shapes(trace, part, first, cur, cur_held, sigma, shape_fit, sc, say,
                                              skip=set(cur.effects) - {"hysteresis"})
             if budget_hit[0]:
-                for r in refs:
-                    if r.accepted:
-                        r.accepted = False
-                        r.verdict += "; not kept: the time budget ran out during this stage"
+                _not_kept_for_budget(refs)
                 refined = cur
             refinements += refs
             if refined is not cur:

@@ -135,7 +135,8 @@ def discovery_page(d, doc: dict, images: dict) -> str:
         rounds.append(f"<h3>{head}</h3>{body}{verdict}")
     refined = "".join(
         f"<tr class={'good' if r['accepted'] else 'bad'}><td class=l>{esc(r['effect'])}</td>"
-        f"<td class=l>{esc(('law ' + r['law'] + ': ') if r.get('law') else '')}{esc(' '.join(r['parameters']))}</td><td>{_f(r['rmse_before_over_noise'], '.2f')}</td>"
+        f"<td class=l>{esc(('law ' + r['law'] + ': ') if r.get('law') else '')}{esc(' '.join(r['parameters']))}</td>"
+        f"<td>{_f(r['rmse_before_over_noise'], '.2f')}</td>"
         f"<td>{_f(r['rmse_after_over_noise'], '.2f')}</td><td>{_f(r['heldout_rmse_before'] / sigma, '.2f')}</td>"
         f"<td>{_f(r['heldout_rmse_after'] / sigma, '.2f')}</td><td>{_f(r['bic_change'], '.0f')}</td>"
         f"<td class=l>{esc(r['verdict'])}</td></tr>" for r in doc["refinements"])

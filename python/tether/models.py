@@ -78,6 +78,9 @@ IWAN_K = tuple(f"iw_k{i}" for i in range(1, 9))
 IWAN_EPS = tuple(f"iw_eps{i}" for i in range(1, 9))
 _PARAMS_IWAN = IWAN_K + IWAN_EPS
 _PARAMS_KAWABATA = ("kaw_LT", "kaw_RT", "kaw_eps_ref", "kaw_F_ref", "kaw_residual")
+#: the elastic law's terms (linear or cubic), and each hysteresis law's
+ELASTIC_PARAMETERS = _PARAMS_LINEAR + _PARAMS_CUBIC
+HYSTERESIS_PARAMETERS = {"kawabata": _PARAMS_KAWABATA, "boucwen": _PARAMS_BOUCWEN, "iwan": _PARAMS_IWAN}
 _PARAMS_CREEP = ("creep_J1", "creep_tau1", "creep_J2", "creep_tau2", "creep_J3", "creep_tau3",
                  "slip_capacity0", "slip_rate", "slip_knee", "slip_load_half", "slip_load_exponent",
                  "slip_regen_tau", "slip_limit")
