@@ -591,6 +591,16 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
                          rms=rms, predictions=[pred], evaluations=r.evaluations, message=r.message)
 
 
+#: the second search (from the refined model) caps its fits at this share of the first's: it starts
+#: within a few sigma of the record, where a candidate that earns its place converges in a few
+#: iterations, and the fits that run to the cap there crawl to nothing (a free vibration with
+#: hysteresis and slack spent 10 s of its 60 s so, on two candidates that failed)
+SECOND_SEARCH_CAP_SHARE = 0.5
+#: a quick fit (quick_iterations from one of several starts) is abandoned at this share of the
+#: time cap: twelve iterations that need half the cap crawl through equations turned stiff
+QUICK_CAP_SHARE = 0.5
+
+
 def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Sequence[dict | None], sc: _Scales,
               quick_iterations: int = 12, time_cap: float | None = None, extra: Sequence[str] = (),
               held: Sequence[str] = (), own_thread: bool = False, baseline_rms: float | None = None,
@@ -612,7 +622,7 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     best, best_i, msg = None, -1, ""
     if len(starts) > 1:
         quick_fits = _side_by_side(
-            lambda s, alone: _fit_once(trace, spec, names, s, sc, time_cap=time_cap, max_iterations=quick_iterations,
+            lambda s, alone: _fit_once(trace, spec, names, s, sc, time_cap=None if time_cap is None else QUICK_CAP_SHARE * time_cap, max_iterations=quick_iterations,
                                        own_thread=alone, **options), starts, nested=own_thread)
         for i, (r, m) in enumerate(quick_fits):
             if r is None:
@@ -1620,6 +1630,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     predict(trace, cur.spec, cur.params)
     t_sim = time.process_time() - t_sim
     cap = max(5.0, 2000.0 * t_sim)
+    caps = [cap]                  # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
 
     shape_free: tuple = ()        # shape terms a refinement freed, kept free in every later fit
     shape_held: tuple = ()        # and the terms they replace, held (at 0) in every later fit
@@ -1629,7 +1640,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         held = tuple(held) + shape_held
         if tr is part:
             held += _knots_unseen(part, extra, starts)
-        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap, extra=extra, held=held, deadline=deadline,
+        r = fit_model(tr, sp, eff, starts, scales, time_cap=caps[-1], extra=extra, held=held, deadline=deadline,
                       own_thread=own_thread, baseline_rms=baseline_rms)
         if deadline is not None and time.perf_counter() > deadline:
             budget_hit[0] = True          # this fit may have been cut short: it cannot judge
@@ -1653,6 +1664,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     refinements: list[Refinement] = []
     rivals: dict = {}
     for sweep in (1, 2):
+        caps.append(cap if sweep == 1 else SECOND_SEARCH_CAP_SHARE * cap)   # for the search of this sweep
         effects_before = cur.effects
         while True:
             masks = regimes(trace, cur)
@@ -1815,6 +1827,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 cur_held = _heldout(trace, red, rp.params, first) if rp.ok else float("inf")
                 fits.append(cur)
                 break
+        caps.pop()
         refined_effects = {r.effect for r in refinements if r.accepted}
         if budget_hit[0] or (sweep == 2 and cur.effects == effects_before
                              and not _shape_groups(cur, skip=refined_effects)):
