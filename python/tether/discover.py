@@ -1709,8 +1709,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 say(f"  + {eff}: RMS error {fm.rms / sigma:.2f} x noise with {dk} more parameter{'s' if dk != 1 else ''} "
                     f"({fm.seconds:.1f} s)")
                 results.append(cr)
-            # a damping the polynomial c(x) follows only in part: its second law, the table of c(x)
-            for cr in [c for c in results if _partial_damping_gain(c, sigma, cur.rms)]:
+            def table_candidate(cr):
+                # the damping candidate again with its second law, the table of c(x)
                 poly = cr.fit
                 tf = fit(trace, poly.spec, poly.effects, _damping_table_starts(trace, poly, sc), sc,
                          extra=DAMPING_TABLE, held=_replaced(DAMPING_TABLE))
@@ -1725,7 +1725,11 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                     ct.accepted, ct.verdict = False, f"the fit failed: {tf.message}"
                 say(f"  + {cr.effect} (table of c(x)): RMS error {tf.rms / sigma:.2f} x noise with {dk} more "
                     f"parameters ({tf.seconds:.1f} s)")
-                results.append(ct)
+                return ct
+
+            # a damping the polynomial c(x) follows only in part: the table of c(x)
+            for cr in [c for c in results if _partial_damping_gain(c, sigma, cur.rms)]:
+                results.append(table_candidate(cr))
             # the rival laws' fits of the effect, for rival_law at the end
             for effect in RIVAL_LAWS:
                 laws = {_law_of(c.fit.spec, effect): dict(c.fit.params) for c in results
@@ -1777,6 +1781,29 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             for c in passing[tested:]:
                 c.accepted = False
                 c.verdict += "; not tested on the held-out part (a better candidate was)"
+            # a polynomial c(x) that earns its place on the whole record and loses it on the held-out
+            # part: fitted to the first part, its x^2 term runs on beyond the displacements that part
+            # reaches, where a damping that levels off does not (the generator's Gaussian c(x) beside
+            # the Iwan bank, forced: 3.64 -> 1.72 x noise on the whole record, held-out 7.67 -> 8.75).
+            # The table of c(x) holds its last knots there (_knots_unseen): it is fitted and tested
+            # in the polynomial's place
+            if not any(c.accepted for c in results):
+                for c in list(results):
+                    if (c.effect == "nonlinear_damping" and c.fit is not None and c.fit.ok
+                            and math.isfinite(c.heldout_rms) and not set(DAMPING_TABLE) <= set(c.fit.shape)
+                            and full_data_verdict(sigma, cur.rms, c.rms, c.bic_change, c.added_parameters)[0]):
+                        ct = table_candidate(c)
+                        if ct.accepted:
+                            ct.part_fit = part_fit(ct)
+                            pf = ct.part_fit
+                            ct.heldout_rms = _heldout(trace, ct.fit.spec, pf.params, first) if pf.ok else float("inf")
+                            say(f"  {ct.effect} (table of c(x)): held-out RMS error {ct.heldout_rms / sigma:.2f} x "
+                                f"noise (was {cur_held / sigma:.2f})")
+                            ok, why = heldout_verdict(sigma, cur_held, ct.heldout_rms, cur.rms, ct.rms)
+                            ct.accepted = ok
+                            ct.verdict = f"{ct.verdict}; {why}"
+                        results.append(ct)
+                        break
             results.sort(key=lambda c: (not c.accepted, c.bic_change))
             step.candidates = results
             if budget_hit[0]:
