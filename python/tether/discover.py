@@ -621,8 +621,9 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     evaluations = 0
     best, best_i, msg = None, -1, ""
     if len(starts) > 1:
+        quick_cap = None if time_cap is None else QUICK_CAP_SHARE * time_cap
         quick_fits = _side_by_side(
-            lambda s, alone: _fit_once(trace, spec, names, s, sc, time_cap=None if time_cap is None else QUICK_CAP_SHARE * time_cap, max_iterations=quick_iterations,
+            lambda s, alone: _fit_once(trace, spec, names, s, sc, time_cap=quick_cap, max_iterations=quick_iterations,
                                        own_thread=alone, **options), starts, nested=own_thread)
         for i, (r, m) in enumerate(quick_fits):
             if r is None:
@@ -1362,8 +1363,8 @@ class Refinement:
     restart: bool = False           # the Iwan bank's idle elements restarted (restart_idle_elements)
 
     def as_dict(self, sigma: float) -> dict:
-        return {"effect": self.effect, "law": self.law, "restart": self.restart, "parameters": list(self.parameters),
-                "rmse_before": self.rms_before, "rmse_after": self.rms_after,
+        return {"effect": self.effect, "law": self.law, "restart": self.restart,
+                "parameters": list(self.parameters), "rmse_before": self.rms_before, "rmse_after": self.rms_after,
                 "rmse_before_over_noise": self.rms_before / sigma, "rmse_after_over_noise": self.rms_after / sigma,
                 "heldout_rmse_before": self.heldout_before,
                 "heldout_rmse_after": self.heldout_after, "bic_change": self.bic_change,
