@@ -1428,17 +1428,25 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
     # the groups' fits are independent: side by side
     group_fits = _side_by_side(lambda eg, alone: fit(trace, cur.spec, cur.effects, starts(eg[1]), extra=eg[1],
                                                      own_thread=alone), groups)
-    for (effect, group), fm in zip(groups, group_fits):
+    bics = [_bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
+            for fm in group_fits]
+    # the held-out fits of the groups that lower the BIC, where that prediction can judge: side by side
+    asked = [i for i, fm in enumerate(group_fits) if fm.ok and bics[i] < 0.0 and fm.rms < cur.rms
+             and _heldout_judges(cur_held, cur.rms)]
+    part_fits = dict(zip(asked, _side_by_side(
+        lambda i, alone: fit(part, cur.spec, cur.effects, [group_fits[i].params], extra=groups[i][1],
+                             own_thread=alone), asked)))
+    for i, ((effect, group), fm) in enumerate(zip(groups, group_fits)):
         if not fm.ok:
             out.append(Refinement(effect, group, cur.rms, float("inf"), cur_held, float("nan"), float("inf"), False,
                                   f"the fit failed: {fm.message}"))
             continue
-        bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n)
+        bic = bics[i]
         held, verdict = float("nan"), ""
         if not (bic < 0.0 and fm.rms < cur.rms):
             verdict = f"BIC changes by {bic:+.1f}: the terms do not earn their place"
-        elif _heldout_judges(cur_held, cur.rms):
-            pf = fit(part, cur.spec, cur.effects, [fm.params], extra=group)
+        elif i in part_fits:
+            pf = part_fits[i]
             held = _heldout(trace, cur.spec, pf.params, first) if pf.ok else float("inf")
             if not held <= cur_held:
                 verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC {bic:+.0f}, but "
@@ -1883,8 +1891,11 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         # from the refined model, its shape terms free in every fit
         shape_free = tuple(dict.fromkeys(shape_free + tuple(k for r in refs if r.accepted for k in r.parameters)))
         shape_held = _replaced(shape_free)
-        cur_part = fit(part, cur.spec, cur.effects, [cur.params], sc_part)
-        cur_held = _heldout(trace, cur.spec, cur_part.params, first) if cur_part.ok else float("inf")
+        if not math.isfinite(refined_held):
+            # (where refine_shapes asked, its fit of the first part was this one: same terms, same start)
+            cur_part = fit(part, cur.spec, cur.effects, [cur.params], sc_part)
+            refined_held = _heldout(trace, cur.spec, cur_part.params, first) if cur_part.ok else float("inf")
+        cur_held = refined_held
         say(f"searching again from the refined model ({' '.join(shape_free)} free): RMS error "
             f"{cur.rms / sigma:.2f} x noise")
     if not budget_hit[0] and "hysteresis" in rivals:
