@@ -43,6 +43,13 @@ def _strict(token):
     raise AssertionError(f"not JSON: {token} (a strict parser such as jq refuses it)")
 
 
+def _record_and_part(stem):
+    """A record read back, its noise estimate and scales, and the first part held-out tests fit."""
+    tr = read_trace(stem)
+    part = D._truncated(tr, D.FIT_PART)
+    return tr, D.estimate_noise(tr).sigma, D._scales(tr), part, len(part.time), D._scales(part)
+
+
 def _rerun_rms(run_cli, tmp_path, stem, params, measured) -> float:
     """RMS error of `tether simulate STEM --params PARAMS` (the FMU) against ``measured``."""
     sim = tmp_path / "sim.csv"
@@ -187,11 +194,7 @@ def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, c
     stem, gen = _write(tmp_path, "forced_iwan_slack", "forced", {"hysteresis", "slack"}, 30, noise=1e-4,
                        rate=200.0, duration_s=10.0)
     assert gen.meta["hidden"]["laws"]["hysteresis"] == "iwan"
-    tr = read_trace(stem)
-    sigma = D.estimate_noise(tr).sigma
-    sc = D._scales(tr)
-    part = D._truncated(tr, D.FIT_PART)
-    first, sc_part = len(part.time), D._scales(part)
+    tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
     lin = D.fit_model(tr, parse_model("linear", "forced"), (), [None], sc)
     iwan = D.fit_model(tr, parse_model("linear+iwan", "forced"), ("hysteresis",), [None], sc)
     bw_spec = parse_model("linear+boucwen", "forced")
@@ -231,11 +234,7 @@ def test_idle_iwan_elements_restart_where_the_fit_left_them(tmp_path):
     stem, gen = _write(tmp_path, "fv_iwan", "free_vibration", {"hysteresis"}, 27, noise=1e-5, rate=200.0,
                        duration_s=10.0)
     assert gen.meta["hidden"]["laws"]["hysteresis"] == "iwan"
-    tr = read_trace(stem)
-    sigma = D.estimate_noise(tr).sigma
-    sc = D._scales(tr)
-    part = D._truncated(tr, D.FIT_PART)
-    first, sc_part = len(part.time), D._scales(part)
+    tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
     spec = parse_model("linear+iwan", "free_vibration")
     ref = D.fit_model(tr, spec, ("hysteresis",), [None], sc)
     k = np.array([ref.params[n] for n in IWAN_K])

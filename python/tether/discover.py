@@ -1898,22 +1898,31 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         cur_held = refined_held
         say(f"searching again from the refined model ({' '.join(shape_free)} free): RMS error "
             f"{cur.rms / sigma:.2f} x noise")
+    def adopt(result, where: str) -> bool:
+        """A last stage's (model, held-out error, record): kept on record, and the model taken
+        unless the time budget ran out during the stage."""
+        nonlocal cur, cur_held, stop
+        new, held, rec = result
+        if rec is not None and budget_hit[0] and rec.accepted:
+            _not_kept_for_budget([rec])
+            new = cur
+            stop += "; " + out_of_budget(where)
+        if rec is not None:
+            refinements.append(rec)
+        if new is cur:
+            return False
+        cur, cur_held = new, held
+        fits.append(cur)
+        return True
+
     if not budget_hit[0] and "hysteresis" in rivals:
         added = [s.effect for s in steps if s.effect and s.effect in cur.effects]
-        swapped, held, rec = rival_law(
+        swapped = adopt(rival_law(
             trace, part, first, cur, cur_held, sigma,
             lambda tr, sp, eff, starts, baseline_rms=None: fit(tr, sp, eff, starts, sc_part if tr is part else sc,
                                                                baseline_rms=baseline_rms),
-            rivals["hysteresis"], added, say)
-        if rec is not None and budget_hit[0] and rec.accepted:
-            _not_kept_for_budget([rec])
-            swapped = cur
-            stop += "; " + out_of_budget("while the rival law was fitted")
-        if rec is not None:
-            refinements.append(rec)
-        if swapped is not cur:
-            cur, cur_held = swapped, held
-            fits.append(cur)
+            rivals["hysteresis"], added, say), "while the rival law was fitted")
+        if swapped:
             # the new law's own shape terms (the Iwan bank's slip strains, Bouc-Wen's exponent)
             refined, refined_held, refs = refine_shapes(trace, part, first, cur, cur_held, sigma, shape_fit, sc,
                                                         say, skip=set(cur.effects) - {"hysteresis"})
@@ -1927,18 +1936,9 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 if math.isfinite(refined_held):
                     cur_held = refined_held
     if not budget_hit[0]:
-        restarted, held, rec = restart_idle_elements(
-            trace, part, first, cur, cur_held, sigma,
-            lambda tr, sp, eff, starts, extra=(): shape_fit(tr, sp, eff, starts, extra), say)
-        if rec is not None and budget_hit[0] and rec.accepted:
-            _not_kept_for_budget([rec])
-            restarted = cur
-            stop += "; " + out_of_budget("while the idle Iwan elements were restarted")
-        if rec is not None:
-            refinements.append(rec)
-        if restarted is not cur:
-            cur, cur_held = restarted, held
-            fits.append(cur)
+        adopt(restart_idle_elements(trace, part, first, cur, cur_held, sigma,
+                                    lambda tr, sp, eff, starts, extra=(): shape_fit(tr, sp, eff, starts, extra), say),
+              "while the idle Iwan elements were restarted")
     return Discovery(trace=trace, noise=noise, start_model=spec.canonical, fits=fits, steps=steps, stop_reason=stop,
                      seconds=time.perf_counter() - t_begin, heldout_start=float(trace.time[first]),
                      removals=removals, refinements=refinements)
