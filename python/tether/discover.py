@@ -1639,7 +1639,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     predict(trace, cur.spec, cur.params)
     t_sim = time.process_time() - t_sim
     cap = max(5.0, 2000.0 * t_sim)
-    caps = [cap]                  # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
+    fit_cap = cap                 # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
 
     shape_free: tuple = ()        # shape terms a refinement freed, kept free in every later fit
     shape_held: tuple = ()        # and the terms they replace, held (at 0) in every later fit
@@ -1649,7 +1649,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         held = tuple(held) + shape_held
         if tr is part:
             held += _knots_unseen(part, extra, starts)
-        r = fit_model(tr, sp, eff, starts, scales, time_cap=caps[-1], extra=extra, held=held, deadline=deadline,
+        r = fit_model(tr, sp, eff, starts, scales, time_cap=fit_cap, extra=extra, held=held, deadline=deadline,
                       own_thread=own_thread, baseline_rms=baseline_rms)
         if deadline is not None and time.perf_counter() > deadline:
             budget_hit[0] = True          # this fit may have been cut short: it cannot judge
@@ -1673,7 +1673,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     refinements: list[Refinement] = []
     rivals: dict = {}
     for sweep in (1, 2):
-        caps.append(cap if sweep == 1 else SECOND_SEARCH_CAP_SHARE * cap)   # for the search of this sweep
+        fit_cap = cap if sweep == 1 else SECOND_SEARCH_CAP_SHARE * cap     # for the search of this sweep
         effects_before = cur.effects
         while True:
             masks = regimes(trace, cur)
@@ -1767,26 +1767,31 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             ahead = passing[:heldout_candidates]
             for c, pf in zip(ahead, _side_by_side(part_fit, ahead)):
                 c.part_fit = pf
-            tested = 0
-            for c in passing:
-                if tested >= heldout_candidates and any(x.accepted for x in passing[:tested]):
-                    break
-                tested += 1
-                new = c.fit.spec
-                pf = c.part_fit if c.part_fit is not None else part_fit(c)
-                c.part_fit = pf
-                c.heldout_rms = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
-                say(f"  {c.effect}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was {cur_held / sigma:.2f})")
+            def heldout_test(c, label=""):
+                # the candidate's prediction of the held-out part by its fit to the first part
+                if c.part_fit is None:
+                    c.part_fit = part_fit(c)
+                pf = c.part_fit
+                c.heldout_rms = _heldout(trace, c.fit.spec, pf.params, first) if pf.ok else float("inf")
+                say(f"  {c.effect}{label}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was "
+                    f"{cur_held / sigma:.2f})")
                 if c.effect == "slack" and c.added_parameters == 0 and not regimes(trace, c.fit)["slack"][first:].any():
                     # slack adds no parameter to overfit with, and a record that goes slack only in
                     # its first part (a release from high up, decaying) leaves nothing for the
                     # held-out part to judge: it is asked only where the measurement goes slack
                     c.verdict += ("; held-out test not asked: the record goes slack only in the part the fit "
                                   "sees, and slack adds no parameter")
-                    continue
+                    return
                 ok, why = heldout_verdict(sigma, cur_held, c.heldout_rms, cur.rms, c.rms)
                 c.accepted = ok
                 c.verdict = f"{c.verdict}; {why}"
+
+            tested = 0
+            for c in passing:
+                if tested >= heldout_candidates and any(x.accepted for x in passing[:tested]):
+                    break
+                tested += 1
+                heldout_test(c)
             for c in passing[tested:]:
                 c.accepted = False
                 c.verdict += "; not tested on the held-out part (a better candidate was)"
@@ -1796,23 +1801,15 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             # the Iwan bank, forced: 3.64 -> 1.72 x noise on the whole record, held-out 7.67 -> 8.75).
             # The table of c(x) holds its last knots there (_knots_unseen): it is fitted and tested
             # in the polynomial's place
-            if not any(c.accepted for c in results):
-                for c in list(results):
-                    if (c.effect == "nonlinear_damping" and c.fit is not None and c.fit.ok
-                            and math.isfinite(c.heldout_rms) and not set(DAMPING_TABLE) <= set(c.fit.shape)
-                            and full_data_verdict(sigma, cur.rms, c.rms, c.bic_change, c.added_parameters)[0]):
-                        ct = table_candidate(c)
-                        if ct.accepted:
-                            ct.part_fit = part_fit(ct)
-                            pf = ct.part_fit
-                            ct.heldout_rms = _heldout(trace, ct.fit.spec, pf.params, first) if pf.ok else float("inf")
-                            say(f"  {ct.effect} (table of c(x)): held-out RMS error {ct.heldout_rms / sigma:.2f} x "
-                                f"noise (was {cur_held / sigma:.2f})")
-                            ok, why = heldout_verdict(sigma, cur_held, ct.heldout_rms, cur.rms, ct.rms)
-                            ct.accepted = ok
-                            ct.verdict = f"{ct.verdict}; {why}"
-                        results.append(ct)
-                        break
+            refused = None if any(c.accepted for c in results) else next(
+                (c for c in results if c.effect == "nonlinear_damping" and c.fit is not None and c.fit.ok
+                 and math.isfinite(c.heldout_rms) and not set(DAMPING_TABLE) <= set(c.fit.shape)
+                 and full_data_verdict(sigma, cur.rms, c.rms, c.bic_change, c.added_parameters)[0]), None)
+            if refused is not None:
+                ct = table_candidate(refused)
+                if ct.accepted:
+                    heldout_test(ct, " (table of c(x))")
+                results.append(ct)
             results.sort(key=lambda c: (not c.accepted, c.bic_change))
             step.candidates = results
             if budget_hit[0]:
@@ -1863,7 +1860,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 cur_held = _heldout(trace, red, rp.params, first) if rp.ok else float("inf")
                 fits.append(cur)
                 break
-        caps.pop()
+        fit_cap = cap
         refined_effects = {r.effect for r in refinements if r.accepted}
         if budget_hit[0] or (sweep == 2 and cur.effects == effects_before
                              and not _shape_groups(cur, skip=refined_effects)):
