@@ -15,10 +15,13 @@
 
 void iwan_elements(const tether_params *p, double k[IWAN_ELEMENTS], double slip[IWAN_ELEMENTS])
 {
-    const double kk[IWAN_ELEMENTS] = {p->iw_k1, p->iw_k2, p->iw_k3, p->iw_k4,
-                                      p->iw_k5, p->iw_k6, p->iw_k7, p->iw_k8};
-    const double ee[IWAN_ELEMENTS] = {p->iw_eps1, p->iw_eps2, p->iw_eps3, p->iw_eps4,
-                                      p->iw_eps5, p->iw_eps6, p->iw_eps7, p->iw_eps8};
+    const double kk[IWAN_ELEMENTS] = {p->iw_k1,  p->iw_k2,  p->iw_k3,  p->iw_k4,  p->iw_k5,  p->iw_k6,
+                                      p->iw_k7,  p->iw_k8,  p->iw_k9,  p->iw_k10, p->iw_k11, p->iw_k12,
+                                      p->iw_k13, p->iw_k14, p->iw_k15, p->iw_k16};
+    const double ee[IWAN_ELEMENTS] = {p->iw_eps1,  p->iw_eps2,  p->iw_eps3,  p->iw_eps4,  p->iw_eps5,
+                                      p->iw_eps6,  p->iw_eps7,  p->iw_eps8,  p->iw_eps9,  p->iw_eps10,
+                                      p->iw_eps11, p->iw_eps12, p->iw_eps13, p->iw_eps14, p->iw_eps15,
+                                      p->iw_eps16};
     for (int i = 0; i < IWAN_ELEMENTS; ++i) {
         k[i] = kk[i];
         slip[i] = ee[i];

@@ -78,7 +78,7 @@ void boucwen_path(double A, double beta, double gamma, const double *x, int n, i
 /* ---- Iwan hysteresis (inter-fibre friction; ours: the paper fits Bouc-Wen) ---------------- */
 /* Parallel Jenkins elements (spring k_i [N] in series with a slider that slips at the spring
  * strain eps_i), in parallel with the elastic law; elements with k_i = 0 are absent. */
-#define IWAN_ELEMENTS 8
+#define IWAN_ELEMENTS 16
 typedef struct {
     int direction;            /* +1 loading, -1 unloading */
     double eps_ref;           /* strain of the last turning point (or where the bank was unloaded) */

@@ -30,7 +30,9 @@ typedef struct {
     double bw_A, bw_beta, bw_gamma, bw_n, bw_b2, bw_b3, bw_b4, bw_b5, bw_b6, z0;
     /* Iwan: element stiffnesses [N] and slip strains */
     double iw_k1, iw_k2, iw_k3, iw_k4, iw_k5, iw_k6, iw_k7, iw_k8;
+    double iw_k9, iw_k10, iw_k11, iw_k12, iw_k13, iw_k14, iw_k15, iw_k16;
     double iw_eps1, iw_eps2, iw_eps3, iw_eps4, iw_eps5, iw_eps6, iw_eps7, iw_eps8;
+    double iw_eps9, iw_eps10, iw_eps11, iw_eps12, iw_eps13, iw_eps14, iw_eps15, iw_eps16;
     /* creep: recoverable Kelvin cells and unrecoverable slip */
     double creep_J1, creep_tau1, creep_J2, creep_tau2, creep_J3, creep_tau3;
     double slip_capacity0, slip_rate, slip_knee, slip_load_half, slip_load_exponent;

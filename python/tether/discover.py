@@ -41,7 +41,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K, ModelSpec, parse_model
+from .models import (ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_EPS_FIT, IWAN_K, ModelSpec,
+                     parse_model)
 from .traces import Trace
 
 #: candidate effects per experiment (what the experiment can reveal), in the order they are tried
@@ -61,7 +62,7 @@ SHAPE_TERMS = {
                                 ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")),
     # the Iwan bank's slip strains, off the fit's grid (a load test of twelve elements slipping
     # between 4e-4 and 8e-3: 3.7 x noise on the grid, 1.2 x with the slip strains free)
-    ("hysteresis", "iwan"): (IWAN_EPS,),
+    ("hysteresis", "iwan"): (IWAN_EPS_FIT,),
     # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
     ("nonlinear_damping", "displacement"): (("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
                                              "c_table_6"),),
@@ -1566,21 +1567,27 @@ IWAN_IDLE_SHARE = 0.02
 IWAN_RESTART_SHARE = 0.05
 
 
-def idle_slip_strains_moved(eps: np.ndarray, idle: np.ndarray) -> dict:
+def _slip_of(k_name: str) -> str:
+    """The slip strain's name of an Iwan element named by its stiffness (iw_k3 -> iw_eps3)."""
+    return IWAN_EPS[IWAN_K.index(k_name)]
+
+
+def idle_slip_strains_moved(eps: np.ndarray, idle: np.ndarray, names: Sequence[str] = IWAN_EPS) -> dict:
     """Slip strains for the idle elements of an Iwan bank (``idle`` a mask over ``eps``), each at the
     middle of the widest gap left between 0 and the live elements' slip strains, one after the
     other (a gap split by one is two gaps for the next). Where the fit left an element idle its
     slip strain did not help there: on the estimate's geometric grid the three lowest elements of a
     forced record with slack sat at 1.3e-4..4.2e-4 while the live ones spread over 9e-4..8e-3, and
     restarted where they were they went idle again (4.22 -> 6.85 x noise, refused); moved into the
-    gaps the bank reached 1.07 x."""
+    gaps the bank reached 1.07 x. ``names``: the slip strains' names, in the order of ``eps``;
+    returns {name: new slip strain} for the idle ones."""
     live = sorted(float(e) for e, i in zip(eps, idle) if not i)
     points, new = [0.0] + live, []
     for _ in range(int(np.sum(idle))):
         cuts = sorted(points + new)
         j = int(np.argmax(np.diff(cuts)))
         new.append(0.5 * (cuts[j] + cuts[j + 1]))
-    names = [n for n, i in zip(IWAN_EPS, idle) if i]
+    names = [n for n, i in zip(names, idle) if i]
     return {n: float(v) for n, v in zip(names, sorted(new))}
 
 
@@ -1600,16 +1607,17 @@ def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, 
     its held-out error and a Refinement or None."""
     if cur.spec.hysteresis != "iwan" or cur.rms <= WITHIN_NOISE * sigma:
         return cur, cur_held, None
-    k = np.array([float(cur.params.get(n, 0.0)) for n in IWAN_K])
+    names = [n for n in IWAN_K if n in cur.free]           # the bank's elements (the others absent)
+    k = np.array([float(cur.params.get(n, 0.0)) for n in names])
     total = float(k.sum())
-    idle = [n for n, v in zip(IWAN_K, k) if v < IWAN_IDLE_SHARE * total]
-    if not total > 0 or not idle or not all(n in cur.free for n in IWAN_K):
+    idle = [n for n, v in zip(names, k) if v < IWAN_IDLE_SHARE * total]
+    if not total > 0 or not idle:
         return cur, cur_held, None
     k2 = np.where(k < IWAN_IDLE_SHARE * total, IWAN_RESTART_SHARE * total, k)
     k2 *= total / k2.sum()
-    in_place = {**cur.params, **{n: float(v) for n, v in zip(IWAN_K, k2)}}
-    eps = np.array([float(cur.params[n]) for n in IWAN_EPS])
-    moved = {**in_place, **idle_slip_strains_moved(eps, k < IWAN_IDLE_SHARE * total)}
+    in_place = {**cur.params, **{n: float(v) for n, v in zip(names, k2)}}
+    eps = np.array([float(cur.params[_slip_of(n)]) for n in names])
+    moved = {**in_place, **idle_slip_strains_moved(eps, k < IWAN_IDLE_SHARE * total, [_slip_of(n) for n in names])}
     fm = fit(trace, cur.spec, cur.effects, [in_place, moved], extra=cur.shape)
     where = ("where the fit left them", "moved into the widest gaps between the live elements' slip strains")[
         min(fm.best_start, 1)] if fm.ok else ""
@@ -1624,13 +1632,13 @@ def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, 
     pf = fit(part, fm.spec, fm.effects, [fm.params], extra=fm.shape)
     held = _heldout(trace, fm.spec, pf.params, first) if pf.ok else float("inf")
     bic = _bic(fm.rms, fm.n_free, len(trace.time)) - _bic(cur.rms, cur.n_free, len(trace.time))
-    live = int(np.sum(np.array([fm.params[n] for n in IWAN_K]) >= IWAN_IDLE_SHARE * total))
+    live = int(np.sum(np.array([fm.params[n] for n in names]) >= IWAN_IDLE_SHARE * total))
     verdict = (f"{where}: "
                f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise with the same terms, BIC {bic:+.0f}, "
-               f"{live} of {len(IWAN_K)} elements carry the bank (were {len(IWAN_K) - n_idle}); held-out "
+               f"{live} of {len(names)} elements carry the bank (were {len(names) - n_idle}); held-out "
                f"{cur_held / sigma:.2f} -> {held / sigma:.2f} x noise")
     r = Refinement("hysteresis", tuple(idle), cur.rms, fm.rms, cur_held, held, bic, True, verdict,
-                   {n: float(fm.params[n]) for n in IWAN_K}, restart=True)
+                   {n: float(fm.params[n]) for n in names}, restart=True)
     say(f"  {n_idle} idle Iwan element{'s' if n_idle > 1 else ''} restarted: kept: {verdict}")
     return fm, held, r
 

@@ -44,7 +44,8 @@ from typing import Callable, Iterable, Mapping, Sequence
 import numpy as np
 
 from . import identify_native as idn
-from .models import IWAN_EPS, IWAN_K, ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model, write_params
+from .models import (IWAN_EPS, IWAN_EPS_FIT, IWAN_K, IWAN_K_FIT, ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model,
+                     write_params)
 from .run import _input_pieces, input_interpolation
 from .traces import Trace, read_trace
 
@@ -163,7 +164,7 @@ def default_free_parameters(spec, experiment: str) -> list[str]:
     displacement-dependent damping. Bouc-Wen: ``bw_A bw_beta bw_gamma`` (the force scale is fixed by
     the law; ``bw_n`` stays at its value and the shape terms ``bw_b2..b6`` at 0). Iwan: the element
     stiffnesses ``iw_k1..8`` (their slip strains stay on the grid the estimate chose, see
-    iwan_slip_grid). Creep (creep tests
+    iwan_slip_grid; elements 9..16 stay absent). Creep (creep tests
     only; seconds of vibration do not see it): the Kelvin compliances ``creep_J1..3`` (time
     constants fixed at their values, spanning minutes to days) and the slip ``slip_capacity0``,
     ``slip_rate``; a creep test holds two load levels, which determine ``EA`` but not a cubic or
@@ -197,7 +198,7 @@ def law_free_parameters(spec: ModelSpec, elastic: bool = True) -> list[str]:
     if spec.hysteresis == "boucwen":
         names += ["bw_A", "bw_beta", "bw_gamma"]
     if spec.hysteresis == "iwan":
-        names += list(IWAN_K)
+        names += list(IWAN_K_FIT)
     return names
 
 
@@ -371,8 +372,8 @@ IWAN_CAP = 10.0
 
 
 def iwan_slip_grid(e_max: float) -> list[float]:
-    """Slip strains of the eight elements, the largest e_max."""
-    n = len(IWAN_EPS)
+    """Slip strains of the IWAN_FIT_ELEMENTS elements a fit frees, the largest e_max."""
+    n = len(IWAN_EPS_FIT)
     return [float(e_max * IWAN_RATIO ** (n - 1 - i)) for i in range(n)]
 
 

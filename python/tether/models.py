@@ -73,9 +73,15 @@ _PARAMS_VISCOUS = ("c0",)
 _PARAMS_DISPLACEMENT = ("c0", "c1", "c2", "c_table_dx", "c_table_1", "c_table_2", "c_table_3", "c_table_4",
                         "c_table_5", "c_table_6", "c_drag")
 _PARAMS_BOUCWEN = ("bw_A", "bw_beta", "bw_gamma", "bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6", "z0")
-#: the Iwan bank: element stiffnesses, then their slip strains
-IWAN_K = tuple(f"iw_k{i}" for i in range(1, 9))
-IWAN_EPS = tuple(f"iw_eps{i}" for i in range(1, 9))
+#: the Iwan bank: element stiffnesses, then their slip strains (IWAN_ELEMENTS of each)
+IWAN_ELEMENTS = 16
+IWAN_K = tuple(f"iw_k{i}" for i in range(1, IWAN_ELEMENTS + 1))
+IWAN_EPS = tuple(f"iw_eps{i}" for i in range(1, IWAN_ELEMENTS + 1))
+#: the elements a fit of the Iwan law frees by default, on the estimate's grid of slip strains; the
+#: others stay absent (stiffness 0) unless a finer bank is asked for (tether.discover's last stage)
+IWAN_FIT_ELEMENTS = 8
+IWAN_K_FIT = IWAN_K[:IWAN_FIT_ELEMENTS]
+IWAN_EPS_FIT = IWAN_EPS[:IWAN_FIT_ELEMENTS]
 _PARAMS_IWAN = IWAN_K + IWAN_EPS
 _PARAMS_KAWABATA = ("kaw_LT", "kaw_RT", "kaw_eps_ref", "kaw_F_ref", "kaw_residual")
 #: the elastic law's terms (linear or cubic), and each hysteresis law's
