@@ -344,6 +344,18 @@ def test_a_finer_iwan_bank_follows_friction_spread_over_more_elements(tmp_path):
     assert same is new and none is None
 
 
+def test_the_report_names_what_each_last_stage_did():
+    """The report's table of the last stages labels a rival law, a restart and a finer bank, and
+    shows a shape group's terms alone."""
+    from tether.discover_report import _refinement_terms
+
+    row = {"parameters": ["iw_k1", "iw_k3"], "law": "", "restart": False, "finer": False}
+    assert _refinement_terms(row) == "iw_k1 iw_k3"
+    assert _refinement_terms({**row, "law": "boucwen -> iwan"}) == "law boucwen -> iwan: iw_k1 iw_k3"
+    assert _refinement_terms({**row, "restart": True}) == "idle elements restarted: iw_k1 iw_k3"
+    assert _refinement_terms({**row, "finer": True}).startswith("finer bank, 2 terms added: ")
+
+
 def test_a_damping_the_polynomial_follows_in_part_is_named_with_the_table(tmp_path, run_cli):
     """A forced sweep with Iwan hysteresis and a Gaussian c(x) that levels off (the generator's
     laws), started from the paper's hysteresis law (--start linear+boucwen): next to the Bouc-Wen

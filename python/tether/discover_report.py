@@ -135,7 +135,7 @@ def discovery_page(d, doc: dict, images: dict) -> str:
         rounds.append(f"<h3>{head}</h3>{body}{verdict}")
     refined = "".join(
         f"<tr class={'good' if r['accepted'] else 'bad'}><td class=l>{esc(r['effect'])}</td>"
-        f"<td class=l>{esc(('law ' + r['law'] + ': ') if r.get('law') else '')}{esc(' '.join(r['parameters']))}</td>"
+        f"<td class=l>{esc(_refinement_terms(r))}</td>"
         f"<td>{_f(r['rmse_before_over_noise'], '.2f')}</td>"
         f"<td>{_f(r['rmse_after_over_noise'], '.2f')}</td><td>{_f(r['heldout_rmse_before'] / sigma, '.2f')}</td>"
         f"<td>{_f(r['heldout_rmse_after'] / sigma, '.2f')}</td><td>{_f(r['bic_change'], '.0f')}</td>"
@@ -144,7 +144,9 @@ def discovery_page(d, doc: dict, images: dict) -> str:
         refined = ("<h2>The shape of the named laws</h2><p>With the effects named, the shape terms of their laws "
                    "were freed one group at a time (kept when the BIC falls and the held-out part does not get "
                    "worse; the best group wins), and a hysteresis named before another effect was fitted again "
-                   "with its rival law in its place, kept on the same terms. This changes no effect's name.</p>"
+                   "with its rival law in its place, kept on the same terms. An Iwan bank still above the noise had "
+                   "its idle elements restarted (kept on a lower error), then was made finer, sixteen elements for "
+                   "eight (kept on the same terms as a shape). This changes no effect's name.</p>"
                    "<table><tr><th>effect</th>"
                    "<th>terms freed</th><th>RMS / σ before</th><th>after</th><th>held-out RMS / σ before</th>"
                    f"<th>after</th><th>ΔBIC</th><th>verdict</th></tr>{refined}</table>")
@@ -173,6 +175,18 @@ begins: the candidate fits used for the held-out test saw only the record before
 {refined}
 </body></html>
 """
+
+
+def _refinement_terms(r: dict) -> str:
+    """What a last-stage row did and the terms it freed or set."""
+    terms = " ".join(r["parameters"])
+    if r.get("law"):
+        return f"law {r['law']}: {terms}"
+    if r.get("restart"):
+        return f"idle elements restarted: {terms}"
+    if r.get("finer"):
+        return f"finer bank, {len(r['parameters'])} terms added: {terms}"
+    return terms
 
 
 def write_discovery_report(report: Path, d, doc: dict) -> None:
