@@ -356,6 +356,49 @@ def test_the_report_names_what_each_last_stage_did():
     assert _refinement_terms({**row, "finer": True}).startswith("finer bank, 2 terms added: ")
 
 
+def test_a_slack_fit_that_never_goes_slack_is_kept_as_a_refit_of_the_model(tmp_path):
+    """Slack adds no parameter: a slack candidate whose tether never goes slack is the current model
+    with other values. Where its fit is the better one, _refit_without_slack returns it as the
+    current model (slack off, the same prediction); where slack acts, or the fit is no better,
+    nothing. The fits here are set by hand on the generator's free vibration without slack (the
+    current model's EA 3 % off) and with it (the truth's EA: its tether goes slack)."""
+    from tether.models import parse_model
+
+    def model_fit(tr, spec, params):
+        y = D.predict(tr, spec, params)
+        rms = float(np.sqrt(np.mean((y - tr.measured) ** 2)))
+        return D.ModelFit(spec=spec.for_experiment(tr.experiment), effects=tuple(spec.effects), params=params,
+                          free=["EA", "c0"], rms=rms, predicted=y)
+
+    def slack_result(fm):
+        return D.CandidateResult(effect="slack", model=fm.model, added_parameters=0, rms=fm.rms,
+                                 heldout_rms=float("nan"), bic_change=0.0, signature=0.0, signature_text="", fit=fm)
+
+    stem, gen = _write(tmp_path, "fv", "free_vibration", set(), 5, noise=1e-5, rate=200.0, duration_s=5.0)
+    tr, sigma, *_ = _record_and_part(stem)
+    d = gen.meta["hidden"]["derived"]
+    truth = {"EA": d["k_lin_N_m"] * tr.length_m, "c0": d["c0_N_s_m"]}
+    lin, with_slack = parse_model("linear", "free_vibration"), parse_model("linear+slack", "free_vibration")
+    cur = model_fit(tr, lin, {**truth, "EA": 1.03 * truth["EA"]})
+    cand = model_fit(tr, with_slack, dict(truth))
+    assert cand.rms < 2.0 * sigma < cur.rms
+    refit = D._refit_without_slack(tr, cur, [slack_result(cand)], sigma)
+    assert refit is not None and refit.spec == cur.spec and not refit.spec.slack
+    assert refit.params["EA"] == truth["EA"] and refit.rms == pytest.approx(cand.rms, rel=1e-6)
+    # no better than the current model: nothing
+    assert D._refit_without_slack(tr, cand, [slack_result(model_fit(tr, with_slack, cur.params))], sigma) is None
+    # a tether that goes slack: the slack fit is another model
+    stem2, gen2 = _write(tmp_path, "fv_slack", "free_vibration", {"slack"}, 5, noise=1e-5, rate=200.0,
+                         duration_s=5.0)
+    tr2, sigma2, *_ = _record_and_part(stem2)
+    d2 = gen2.meta["hidden"]["derived"]
+    truth2 = {"EA": d2["k_lin_N_m"] * tr2.length_m, "c0": d2["c0_N_s_m"]}
+    cur2 = model_fit(tr2, lin, {**truth2, "EA": 1.03 * truth2["EA"]})
+    cand2 = model_fit(tr2, with_slack, dict(truth2))
+    assert cand2.rms < cur2.rms
+    assert D._refit_without_slack(tr2, cur2, [slack_result(cand2)], sigma2) is None
+
+
 def test_a_damping_the_polynomial_follows_in_part_is_named_with_the_table(tmp_path, run_cli):
     """A forced sweep with Iwan hysteresis and a Gaussian c(x) that levels off (the generator's
     laws), started from the paper's hysteresis law (--start linear+boucwen): next to the Bouc-Wen
