@@ -2045,6 +2045,20 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         fits.append(cur)
         return True
 
+    def iwan_stages() -> None:
+        """An Iwan bank's last stages: its idle elements restarted, then a finer bank (each a no-op
+        for another law)."""
+        for stage, where in ((restart_idle_elements, "while the idle Iwan elements were restarted"),
+                             (finer_bank, "while the Iwan bank was made finer")):
+            if not budget_hit[0]:
+                adopt(stage(trace, part, first, cur, cur_held, sigma,
+                            lambda tr, sp, eff, starts, extra=(): shape_fit(tr, sp, eff, starts, extra), say), where)
+
+    # the bank at its best before its rival law is fitted in its place: the rival is judged against
+    # the bank its restart and a finer bank make of it, not against eight elements with most idle
+    if cur.spec.hysteresis == "iwan":
+        iwan_stages()
+    swapped = False
     if not budget_hit[0] and "hysteresis" in rivals:
         added = [s.effect for s in steps if s.effect and s.effect in cur.effects]
         swapped = adopt(rival_law(
@@ -2065,14 +2079,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 cur = refined
                 if math.isfinite(refined_held):
                     cur_held = refined_held
-    if not budget_hit[0]:
-        adopt(restart_idle_elements(trace, part, first, cur, cur_held, sigma,
-                                    lambda tr, sp, eff, starts, extra=(): shape_fit(tr, sp, eff, starts, extra), say),
-              "while the idle Iwan elements were restarted")
-    if not budget_hit[0]:
-        adopt(finer_bank(trace, part, first, cur, cur_held, sigma,
-                         lambda tr, sp, eff, starts, extra=(): shape_fit(tr, sp, eff, starts, extra), say),
-              "while the Iwan bank was made finer")
+    if swapped and cur.spec.hysteresis == "iwan":
+        iwan_stages()
     return Discovery(trace=trace, noise=noise, start_model=spec.canonical, fits=fits, steps=steps, stop_reason=stop,
                      seconds=time.perf_counter() - t_begin, heldout_start=float(trace.time[first]),
                      removals=removals, refinements=refinements)
