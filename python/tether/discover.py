@@ -1424,6 +1424,22 @@ def _not_kept_for_budget(records) -> None:
             r.verdict += "; not kept: the time budget ran out during this stage"
 
 
+def _shape_judged(rms_before: float, rms: float, bic: float, held_before: float, held: float, sigma: float,
+                  refused: str) -> tuple[bool, str]:
+    """The verdict on terms added to a named law's shape: kept on a lower BIC and error on the whole
+    record and, where the held-out test was asked (``held`` not NaN), a prediction of the held-out
+    part no worse; ``refused``: the verdict where the BIC or the error does not fall."""
+    if not (bic < 0.0 and rms < rms_before):
+        return False, refused
+    if not math.isnan(held) and not held <= held_before:
+        return False, (f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC {bic:+.0f}, but the "
+                       f"held-out part gets worse: {held_before / sigma:.2f} -> {held / sigma:.2f} x noise")
+    return True, f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC {bic:+.0f}, " + (
+        f"held-out {held_before / sigma:.2f} -> {held / sigma:.2f} x noise" if math.isfinite(held) else
+        f"held-out test not asked: the model predicts the held-out part {held_before / rms_before:.0f} times "
+        f"worse than it fits the whole record, a test that cannot judge a shape")
+
+
 def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
                   sc: _Scales, say: Callable[[str], None], skip=frozenset()):
     """The last stage: the effects are named; where the model still misses the record, free the
@@ -1462,21 +1478,12 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
                                   f"the fit failed: {fm.message}"))
             continue
         bic = bics[i]
-        held, verdict = float("nan"), ""
-        if not (bic < 0.0 and fm.rms < cur.rms):
-            verdict = f"BIC changes by {bic:+.1f}: the terms do not earn their place"
-        elif i in part_fits:
+        held = float("nan")
+        if i in part_fits:
             pf = part_fits[i]
             held = _heldout(trace, cur.spec, pf.params, first) if pf.ok else float("inf")
-            if not held <= cur_held:
-                verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC {bic:+.0f}, but "
-                           f"the held-out part gets worse: {cur_held / sigma:.2f} -> {held / sigma:.2f} x noise")
-        ok = not verdict
-        if ok:
-            verdict = f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC {bic:+.0f}, " + (
-                f"held-out {cur_held / sigma:.2f} -> {held / sigma:.2f} x noise" if math.isfinite(held) else
-                f"held-out test not asked: the model predicts the held-out part {cur_held / cur.rms:.0f} times "
-                f"worse than it fits the whole record, a test that cannot judge a shape")
+        ok, verdict = _shape_judged(cur.rms, fm.rms, bic, cur_held, held, sigma,
+                                    f"BIC changes by {bic:+.1f}: the terms do not earn their place")
         r = Refinement(effect, tuple(group), cur.rms, fm.rms, cur_held, held, bic, ok, verdict,
                        {k: float(fm.params[k]) for k in group})
         out.append(r)
@@ -1707,25 +1714,18 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
     fm = fit(trace, cur.spec, cur.effects, [start], extra=extra)
     n = len(trace.time)
     bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
-    held, verdict = float("nan"), ""
+    held = float("nan")
     if not fm.ok:
-        verdict = f"the fit failed: {fm.message}"
-    elif not (bic < 0.0 and fm.rms < cur.rms):
-        verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC changes by {bic:+.1f}: "
-                   f"the bank of {len(bank)} stays")
-    elif _heldout_judges(cur_held, cur.rms):
-        pf = fit(part, fm.spec, fm.effects, [fm.params], extra=extra)
-        held = _heldout(trace, fm.spec, pf.params, first) if pf.ok else float("inf")
-        if not held <= cur_held:
-            verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC {bic:+.0f}, but the "
-                       f"held-out part gets worse: {cur_held / sigma:.2f} -> {held / sigma:.2f} x noise")
-    ok = not verdict
-    if ok:
-        verdict = (f"{len(IWAN_K)} elements for {len(bank)}: RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} "
-                   f"x noise, BIC {bic:+.0f}, " + (
-                       f"held-out {cur_held / sigma:.2f} -> {held / sigma:.2f} x noise" if math.isfinite(held) else
-                       f"held-out test not asked: the model predicts the held-out part {cur_held / cur.rms:.0f} "
-                       f"times worse than it fits the whole record"))
+        ok, verdict = False, f"the fit failed: {fm.message}"
+    else:
+        if bic < 0.0 and fm.rms < cur.rms and _heldout_judges(cur_held, cur.rms):
+            pf = fit(part, fm.spec, fm.effects, [fm.params], extra=extra)
+            held = _heldout(trace, fm.spec, pf.params, first) if pf.ok else float("inf")
+        ok, verdict = _shape_judged(cur.rms, fm.rms, bic, cur_held, held, sigma,
+                                    f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC changes "
+                                    f"by {bic:+.1f}: the bank of {len(bank)} stays")
+        if ok:
+            verdict = f"{len(IWAN_K)} elements for {len(bank)}: {verdict}"
     r = Refinement("hysteresis", terms, cur.rms, fm.rms if fm.ok else float("inf"), cur_held, held, bic, ok, verdict,
                    {t: float(fm.params[t]) for t in IWAN_K + IWAN_EPS} if fm.ok else {}, finer=True)
     say(f"  a finer Iwan bank: {'kept' if ok else 'not kept'}: {verdict}")
