@@ -1159,7 +1159,6 @@ def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
     latter Bouc-Wen left 3.4-10 x noise, bench/hysteresis_law_gap.py), and in a load test a third,
     the paper's Kawabata branches (which replace the elastic law: their loading curve is a power
     law)."""
-
     new = _model_for(spec, effect)
     out = [new] if new is not None else []
     if effect == "hysteresis" and spec.hysteresis == "none":
@@ -1201,7 +1200,6 @@ def _damping_table_starts(trace: Trace, fm: "ModelFit", sc: _Scales) -> list:
 
 
 def _model_for(spec: ModelSpec, effect: str) -> ModelSpec | None:
-
     if effect == "nonlinear_stiffness":
         return None if spec.hysteresis == "kawabata" or spec.stiffness == "cubic" else replace(spec, stiffness="cubic")
     if effect == "hysteresis":
@@ -1346,7 +1344,6 @@ def _reduced_starts(cur: ModelFit, reduced: ModelSpec, sc: _Scales) -> list:
 
 
 def _without(spec: ModelSpec, effect: str) -> ModelSpec:
-
     return {"nonlinear_stiffness": lambda: replace(spec, stiffness="linear"),
             "hysteresis": lambda: replace(spec, hysteresis="none"),
             "nonlinear_damping": lambda: replace(spec, damping="viscous"),
@@ -1597,23 +1594,28 @@ def _slip_of(k_name: str) -> str:
     return IWAN_EPS[IWAN_K.index(k_name)]
 
 
-def idle_slip_strains_moved(eps: np.ndarray, idle: np.ndarray, names: Sequence[str] = IWAN_EPS) -> dict:
-    """Slip strains for the idle elements of an Iwan bank (``idle`` a mask over ``eps``), each at the
-    middle of the widest gap left between 0 and the live elements' slip strains, one after the
-    other (a gap split by one is two gaps for the next). Where the fit left an element idle its
-    slip strain did not help there: on the estimate's geometric grid the three lowest elements of a
-    forced record with slack sat at 1.3e-4..4.2e-4 while the live ones spread over 9e-4..8e-3, and
-    restarted where they were they went idle again (4.22 -> 6.85 x noise, refused); moved into the
-    gaps the bank reached 1.07 x. ``names``: the slip strains' names, in the order of ``eps``;
-    returns {name: new slip strain} for the idle ones."""
-    live = sorted(float(e) for e, i in zip(eps, idle) if not i)
-    points, new = [0.0] + live, []
-    for _ in range(int(np.sum(idle))):
+def _gap_midpoints(live: Sequence[float], count: int) -> list[float]:
+    """``count`` slip strains, each at the middle of the widest gap left between 0 and the ``live``
+    ones, one after the other (a gap split by one is two gaps for the next); in increasing order."""
+    points, new = [0.0] + sorted(float(e) for e in live), []
+    for _ in range(count):
         cuts = sorted(points + new)
         j = int(np.argmax(np.diff(cuts)))
         new.append(0.5 * (cuts[j] + cuts[j + 1]))
-    names = [n for n, i in zip(names, idle) if i]
-    return {n: float(v) for n, v in zip(names, sorted(new))}
+    return sorted(new)
+
+
+def idle_slip_strains_moved(eps: np.ndarray, idle: np.ndarray, names: Sequence[str] = IWAN_EPS) -> dict:
+    """Slip strains for the idle elements of an Iwan bank (``idle`` a mask over ``eps``), at the
+    middles of the widest gaps between 0 and the live elements' slip strains (_gap_midpoints).
+    Where the fit left an element idle its slip strain did not help there: on the estimate's
+    geometric grid the three lowest elements of a forced record with slack sat at 1.3e-4..4.2e-4
+    while the live ones spread over 9e-4..8e-3, and restarted where they were they went idle again
+    (4.22 -> 6.85 x noise, refused); moved into the gaps the bank reached 1.07 x. ``names``: the
+    slip strains' names, in the order of ``eps``; returns {name: new slip strain} for the idle
+    ones, in order of strain."""
+    new = _gap_midpoints([e for e, i in zip(eps, idle) if not i], int(np.sum(idle)))
+    return dict(zip([n for n, i in zip(names, idle) if i], new))
 
 
 def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float,
@@ -1628,8 +1630,8 @@ def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, 
     again, from two starts: the idle elements where the fit left them, and moved into the widest
     gaps between the live ones' slip strains (idle_slip_strains_moved); the better after a few
     iterations is carried on. The same model with the same free terms, kept when its error on the
-    whole record is lower. The held-out error of a fit to the first part is recorded beside it. Returns the model,
-    its held-out error and a Refinement or None."""
+    whole record is lower. The held-out error of a fit to the first part is recorded beside it.
+    Returns the model, its held-out error and a Refinement or None."""
     if cur.spec.hysteresis != "iwan" or cur.rms <= WITHIN_NOISE * sigma:
         return cur, cur_held, None
     names = [n for n in IWAN_K if n in cur.free]           # the bank's elements (the others absent)
@@ -1706,9 +1708,7 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
     e2 = np.concatenate([e[live] * (1 - IWAN_SPLIT), e[live] * (1 + IWAN_SPLIT)])
     rest = len(IWAN_K) - len(k2)
     if rest:
-        gaps = idle_slip_strains_moved(np.r_[e2, np.zeros(rest)], np.r_[np.zeros(len(e2), bool), np.ones(rest, bool)],
-                                       [f"_{i}" for i in range(len(e2) + rest)])
-        e2 = np.r_[e2, [gaps[f"_{i}"] for i in range(len(e2), len(e2) + rest)]]
+        e2 = np.r_[e2, _gap_midpoints(e2, rest)]
         k2 = np.r_[k2, np.full(rest, IWAN_RESTART_SHARE * total)]
         k2 *= total / k2.sum()
     order = np.argsort(e2)
@@ -1786,12 +1786,16 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         return (f"the time budget of {budget:.0f} s was spent {where}; the model is the last one that was "
                 f"fully judged (rerun with a larger --budget to go on)")
 
+    def heldout_of(m: ModelFit) -> float:
+        """The held-out error of ``m``: its prediction of the held-out part by its fit to the first."""
+        pf = fit(part, m.spec, m.effects, [m.params], sc_part)
+        return _heldout(trace, m.spec, pf.params, first) if pf.ok else float("inf")
+
     def shape_fit(tr, sp, eff, starts, extra, own_thread=False):
         return fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra, held=_replaced(extra),
                    own_thread=own_thread)
 
-    cur_part = fit(part, spec, base_effects, [cur.params], sc_part)
-    cur_held = _heldout(trace, spec, cur_part.params, first)
+    cur_held = _heldout(trace, spec, fit(part, spec, base_effects, [cur.params], sc_part).params, first)
     say(f"{cur.model}: RMS error {cur.rms:.3g} m = {cur.rms / sigma:.2f} x noise ({cur.seconds:.1f} s)")
     fits = [cur]
     steps: list[Step] = []
@@ -1961,8 +1965,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                     stop += (f"; the slack candidate never went slack, and its fit, the same model with other "
                              f"values, is kept: RMS error {cur.rms / sigma:.2f} -> {refit.rms / sigma:.2f} x noise")
                     cur = refit
-                    cur_part = fit(part, cur.spec, cur.effects, [cur.params], sc_part)
-                    cur_held = _heldout(trace, cur.spec, cur_part.params, first) if cur_part.ok else float("inf")
+                    cur_held = heldout_of(cur)
                     fits.append(cur)
                 break
             step.effect = win.effect
@@ -1972,7 +1975,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             step.rms_after = win.rms
             step.model_after = win.model
             say(f"added {win.effect}: RMS error {cur.rms / sigma:.2f} -> {win.rms / sigma:.2f} x noise")
-            cur, cur_part, cur_held = win.fit, win.part_fit, win.heldout_rms
+            cur, cur_held = win.fit, win.heldout_rms
             if cur.shape:                           # a law with its shape terms (the table of c(x))
                 shape_free = tuple(dict.fromkeys(shape_free + tuple(cur.shape)))
                 shape_held = _replaced(shape_free)
@@ -1993,9 +1996,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 say(f"removed {e}: without it the RMS error is {rf.rms / sigma:.2f} x noise ({why})")
                 removals.append(Removal(e, cur.model, rf.model, cur.rms, rf.rms,
                                         f"next to {win.effect} it no longer earns its parameters: {why}"))
-                rp = fit(part, red, rf.effects, [rf.params], sc_part)
-                cur, cur_part = rf, rp
-                cur_held = _heldout(trace, red, rp.params, first) if rp.ok else float("inf")
+                cur = rf
+                cur_held = heldout_of(rf)
                 fits.append(cur)
                 break
         fit_cap = cap
@@ -2028,8 +2030,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         shape_held = _replaced(shape_free)
         if not math.isfinite(refined_held):
             # (where refine_shapes asked, its fit of the first part was this one: same terms, same start)
-            cur_part = fit(part, cur.spec, cur.effects, [cur.params], sc_part)
-            refined_held = _heldout(trace, cur.spec, cur_part.params, first) if cur_part.ok else float("inf")
+            refined_held = heldout_of(cur)
         cur_held = refined_held
         say(f"searching again from the refined model ({' '.join(shape_free)} free): RMS error "
             f"{cur.rms / sigma:.2f} x noise")
