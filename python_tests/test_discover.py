@@ -324,7 +324,7 @@ def test_a_finer_iwan_bank_follows_friction_spread_over_more_elements(tmp_path):
     tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
     spec = parse_model("linear+iwan", "free_vibration")
 
-    def fit(t, sp, eff, starts, extra=()):
+    def fit(t, sp, eff, starts, extra=(), cap_factor=1.0):      # no time cap here to scale
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra)
 
     est = D.fit_model(tr, spec, ("hysteresis",), [None], sc)
@@ -666,3 +666,59 @@ def test_a_named_slack_is_shown_with_the_balance_of_the_slack_model(tmp_path):
     # a slack the model before the step already showed keeps its own signature
     win.signature, win.signature_text = 0.3, "shown before"
     assert D._slack_seen_by(tr, win) == "shown before"
+
+
+# ---------------------------------------------------------------------------------------------
+# a long record searched on every k-th sample, its final model fitted to the whole record
+def _sine_forced(write_trace, name, f_hz, n, periodic=None, rate=1000.0):
+    """A forced record with a sinusoidal force of f_hz sampled at ``rate``; the displacement a
+    sinusoid with 1e-5 m of noise."""
+    t = np.arange(n) / rate
+    x = 1e-3 * np.sin(2 * np.pi * f_hz * t - 0.3) + 1e-5 * np.random.default_rng(3).standard_normal(n)
+    meta = write_trace.meta("forced", **({"periodic_samples": periodic} if periodic else {}))
+    return read_trace(write_trace(name, meta, {"time": t, "force": 10 * np.sin(2 * np.pi * f_hz * t),
+                                               "displacement": x}))
+
+
+def test_a_long_record_is_thinned_only_where_its_input_is_rebuilt_within_the_noise(write_trace):
+    slow = _sine_forced(write_trace, "slow", 1.0, 20000)
+    # a cubic spline through every 5th sample (200 Hz) of a 1 Hz sine misses it by ~(wh)^4/384,
+    # 3e-9 of its amplitude: far below the noise carried to the force (1e-5 m of 1e-3 m)
+    assert D.thinned_input_miss(slow, 5) < 1e-4 * 1e-5
+    assert D.search_thinning(slow, 1e-5) == 5               # 20000 samples -> 4000
+    # 120 Hz: at 200 Hz or 500 Hz the spline cannot follow it (wh = 3.8 and 1.5 rad): every sample
+    fast = _sine_forced(write_trace, "fast", 120.0, 20000)
+    assert D.thinned_input_miss(fast, 2) > 1e-5
+    assert D.search_thinning(fast, 1e-5) == 1
+    # a periodic record: k divides the period, and the thinned record keeps whole periods
+    per = _sine_forced(write_trace, "per", 1.0, 12000, periodic=6000, rate=6000.0)
+    assert D.search_thinning(per, 1e-5) == 2
+    th = D.thinned(per, 2)
+    assert th.periodic_samples == 3000 and len(th.time) == 6000 and th.time[1] == per.time[2]
+    odd = _sine_forced(write_trace, "odd", 1.0, 2 * 4001, periodic=4001, rate=4001.0)
+    assert D.search_thinning(odd, 1e-5) == 1                 # 2 does not divide 4001
+    # a record that is not periodic keeps its last sample
+    th = D.thinned(_sine_forced(write_trace, "end", 1.0, 10001), 3)
+    assert th.time[-1] == 10.0 and th.time[-2] == 9.999 and len(th.time) == 3335
+
+
+def test_a_long_record_searched_thinned_reports_the_whole_records_errors(tmp_path, run_cli):
+    stem, tr = _write(tmp_path, "forced_long", "forced", {"nonlinear_stiffness"}, 5, noise=1e-4, rate=1000.0,
+                      duration_s=9.0)
+    doc, out, _ = _discover_cli(run_cli, stem, tmp_path)
+    assert doc["samples"] == 9001 and doc["searched_every"] == 3, (doc["samples"], doc["searched_every"])
+    assert "searched on every 3rd sample of 9001" in out
+    assert doc["added_effects"] == ["nonlinear_stiffness"]
+    sigma = tr.meta["hidden"]["noise_sigma_m"]
+    assert doc["rmse_final"] <= 1.5 * sigma
+    # the errors reported are the whole record's: the FMU reruns the final model on all 9001 samples
+    measured = read_trace(stem).measured
+    final = tmp_path / "final.json"
+    final.write_text(json.dumps(doc["final_params"]))
+    assert _rerun_rms(run_cli, tmp_path, stem, final, measured) == pytest.approx(doc["rmse_final"], rel=1e-6)
+    assert doc["steps"][0]["rmse_before"] == doc["rmse_initial"]
+    # and the start model's values from every third sample fit the whole record as well as its own
+    # fit to the whole record does
+    whole = read_trace(stem)
+    lin = D.fit_model(whole, D.parse_model("linear", "forced"), (), [None], D._scales(whole))
+    assert 0.999 * lin.rms <= doc["rmse_initial"] <= 1.01 * lin.rms
