@@ -1867,8 +1867,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         held = tuple(held) + shape_held
         if tr is part:
             held += _knots_unseen(part, extra, starts)
-        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap_factor * fit_cap, extra=extra, held=held, deadline=deadline,
-                      own_thread=own_thread, baseline_rms=baseline_rms)
+        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap_factor * fit_cap, extra=extra, held=held,
+                      deadline=deadline, own_thread=own_thread, baseline_rms=baseline_rms)
         if deadline is not None and time.perf_counter() > deadline:
             budget_hit[0] = True          # this fit may have been cut short: it cannot judge
         return r
@@ -2211,7 +2211,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                                extra=cur.shape, held=shape_held + _replaced(cur.shape), deadline=deadline,
                                max_iterations=WHOLE_RECORD_ITERATIONS)
             if not fitted.ok:
-                stop += f"; the fit to the whole record failed ({fitted.message}): the searched record's values are kept"
+                stop += (f"; the fit to the whole record failed ({fitted.message}): the searched record's values "
+                         "are kept")
                 fitted = None
         fits = _on_whole_record(whole, fits, steps, removals, fitted)
         say(f"{fits[-1].model} on the whole record: RMS error {fits[-1].rms / sigma:.2f} x noise")
