@@ -705,9 +705,10 @@ def test_a_long_record_is_thinned_only_where_its_input_is_rebuilt_within_the_noi
 def test_a_long_record_searched_thinned_reports_the_whole_records_errors(tmp_path, run_cli):
     stem, tr = _write(tmp_path, "forced_long", "forced", {"nonlinear_stiffness"}, 5, noise=1e-4, rate=1000.0,
                       duration_s=9.0)
-    doc, out, _ = _discover_cli(run_cli, stem, tmp_path)
+    doc, out, _ = _discover_cli(run_cli, stem, tmp_path, "--report", tmp_path / "report")
     assert doc["samples"] == 9001 and doc["searched_every"] == 3, (doc["samples"], doc["searched_every"])
     assert "searched on every 3rd sample of 9001" in out
+    assert "the search ran on every 3rd sample of 9001" in (tmp_path / "report" / "index.html").read_text()
     assert doc["added_effects"] == ["nonlinear_stiffness"]
     sigma = tr.meta["hidden"]["noise_sigma_m"]
     assert doc["rmse_final"] <= 1.5 * sigma

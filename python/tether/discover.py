@@ -1840,7 +1840,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     every = search_thinning(whole, sigma)
     if every > 1:
         trace = thinned(whole, every)
-        say(f"searching on every {_ordinal(every)} sample ({len(trace.time)} of {len(whole.time)}); the final "
+        say(f"searching on every {ordinal(every)} sample ({len(trace.time)} of {len(whole.time)}); the final "
             f"model is fitted to the whole record")
     sc = _scales(trace)
     n = len(trace.time)
@@ -2221,7 +2221,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                      removals=removals, refinements=refinements, searched_every=every)
 
 
-def _ordinal(k: int) -> str:
+def ordinal(k: int) -> str:
+    """1st, 2nd, 3rd, 4th, ... 11th, 12th, 13th, ... 21st"""
     return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
 
 
@@ -2344,7 +2345,7 @@ def account(d: Discovery) -> str:
              f"({d.noise.method})",
              f"start: {d.start_model}, RMS error {d.fits[0].rms:.3g} m = {d.fits[0].rms / sigma:.2f} x noise"]
     if d.searched_every > 1:
-        lines.append(f"searched on every {_ordinal(d.searched_every)} sample of {len(d.trace.time)}; the errors below "
+        lines.append(f"searched on every {ordinal(d.searched_every)} sample of {len(d.trace.time)}; the errors below "
                      "are those of the whole record, the candidates' in the JSON those of the searched samples")
     for i, st in enumerate([s for s in d.steps if s.effect], 1):
         wins = sorted(st.windows, key=lambda w: -w.share)[:3]

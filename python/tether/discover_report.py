@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .discover import ordinal
 from .report import PAGE_STYLE, pyplot, save_figure_atomic, write_json_atomic, write_text_atomic
 
 
@@ -151,6 +152,11 @@ def discovery_page(d, doc: dict, images: dict) -> str:
                    "<th>terms freed</th><th>RMS / σ before</th><th>after</th><th>held-out RMS / σ before</th>"
                    f"<th>after</th><th>ΔBIC</th><th>verdict</th></tr>{refined}</table>")
     added = ", ".join(doc["added_effects"]) or "nothing"
+    every = int(doc.get("searched_every", 1))
+    searched = "" if every == 1 else (
+        f"<p>A long record: the search ran on every {ordinal(every)} sample of {doc['samples']}, and its "
+        "model was then fitted to the whole record. The models in turn, the steps and the plots show the "
+        "whole record's errors; the rounds' candidates show those of the searched samples.</p>\n")
     return f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>Discovery: {esc(tr.name)}</title><style>{PAGE_STYLE}
 td.l {{ max-width: 30em; }}</style></head>
@@ -159,7 +165,7 @@ td.l {{ max-width: 30em; }}</style></head>
 ({doc['rmse_initial_over_noise']:.2f} × the noise). Noise estimated from the data: {sigma:.3g} m
 ({esc(doc['noise_method'])}). <b>Discovered: {esc(added)}</b>; final model <code>{esc(doc['final_model'])}</code>,
 RMS error {doc['rmse_final']:.3g} m = {doc['rmse_final_over_noise']:.2f} × the noise. {doc['seconds']:.1f} s.</p>
-<p>Numbers: <a href="discovery.json">discovery.json</a> (also a <code>--params</code> file of the final model:
+{searched}<p>Numbers: <a href="discovery.json">discovery.json</a> (also a <code>--params</code> file of the final model:
 <code>tether simulate OTHER.csv --params discovery.json</code>).</p>
 <h2>The steps</h2>
 <table><tr><th>#</th><th>effect</th><th>model after</th><th>RMS / σ before</th><th>after</th>
