@@ -457,13 +457,17 @@ def _truncated(trace: Trace, fraction: float) -> Trace:
     n = len(trace.time)
     P = int(trace.periodic_samples or 0)
     m = max(1, int(round(fraction * n / P))) * P if P else max(20, int(round(fraction * n)))
-    m = min(m, n)
-    part = copy.copy(trace)
-    part.time = trace.time[:m]
-    part.measured = trace.measured[:m]
+    return _samples_of(trace, slice(0, min(m, n)))
+
+
+def _samples_of(trace: Trace, index) -> Trace:
+    """The record on the samples ``index`` selects (a slice or an index array)."""
+    out = copy.copy(trace)
+    out.time = trace.time[index]
+    out.measured = trace.measured[index]
     if trace.input is not None:
-        part.input = trace.input[:m]
-    return part
+        out.input = trace.input[index]
+    return out
 
 
 #: a record whose simulation runs over more samples than this is searched on every k-th sample,
@@ -490,7 +494,7 @@ def thinned_input_miss(trace: Trace, k: int) -> float:
     """How far the input rebuilt from every k-th sample misses the samples dropped (RMS), carried
     to the measured column by the ratio of the columns' standard deviations [unit of the measured
     column]; 0 for a record without input."""
-    from .run import _input_pieces, input_interpolation
+    from .run import _input_pieces, input_interpolation, record_period
 
     if trace.input is None:
         return 0.0
@@ -499,7 +503,7 @@ def thinned_input_miss(trace: Trace, k: int) -> float:
     P = int(trace.periodic_samples or 0)
     period = None
     if P:
-        period = float(t[P] - t[0]) if len(t) > P else float(t[P - 1] - t[0]) * P / (P - 1)
+        period = record_period(t, P)
         t, u = t[:P], u[:P]
     keep = _kept_samples(len(t), k, bool(P))
     vals, ders = _input_pieces(t[keep], u[keep], period, input_interpolation(trace))
@@ -530,12 +534,7 @@ def search_thinning(trace: Trace, sigma: float) -> int:
 def thinned(trace: Trace, k: int) -> Trace:
     """The record on every k-th sample (search_thinning's k; a periodic record keeps whole periods)."""
     P = int(trace.periodic_samples or 0)
-    keep = _kept_samples(len(trace.time), k, bool(P))
-    out = copy.copy(trace)
-    out.time = trace.time[keep]
-    out.measured = trace.measured[keep]
-    if trace.input is not None:
-        out.input = trace.input[keep]
+    out = _samples_of(trace, _kept_samples(len(trace.time), k, bool(P)))
     if P:
         out.periodic_samples = P // k
     return out
@@ -1759,6 +1758,14 @@ IWAN_STAGES_GAP = 1.0
 IWAN_SPLIT = 0.15
 
 
+def bank_cap_factor(elements: int) -> float:
+    """The time caps of a fit that carries an Iwan bank of ``elements`` elements, as a multiple of the
+    search's (whose fits carry IWAN_FIT_ELEMENTS): each simulation carries the bank, each Jacobian a
+    column per element (eval record 27 on every 5th sample: the finer bank's fit of sixteen elements
+    needs 48 s on two threads, and was abandoned at the search's cap, 63 s of CPU time)."""
+    return max(1.0, elements / len(IWAN_K_FIT))
+
+
 def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
                say: Callable[[str], None]):
     """The search fits an Iwan bank of IWAN_FIT_ELEMENTS elements; a smooth hysteresis loop (a
@@ -1796,10 +1803,7 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
              **{n: float(v) for n, v in zip(IWAN_EPS, e2[order])}}
     terms = tuple(n for n in IWAN_K + IWAN_EPS if n not in cur.free)
     extra = tuple(cur.shape) + tuple(n for n in IWAN_K[len(bank):] + IWAN_EPS if n not in cur.shape)
-    # twice the elements: each simulation carries twice the bank, each Jacobian twice its columns
-    # (eval record 27 on every 5th sample: the fit needs 48 s on two threads, and was abandoned at
-    # the cap of the search's fits, 63 s of CPU time)
-    cap_factor = len(IWAN_K) / len(bank)
+    cap_factor = bank_cap_factor(len(IWAN_K))
     fm = fit(trace, cur.spec, cur.effects, [start], extra=extra, cap_factor=cap_factor)
     n = len(trace.time)
     bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
@@ -2183,8 +2187,8 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             return
         shape_free = tuple(dict.fromkeys(shape_free + tuple(cur.shape)))
         shape_held = _replaced(shape_free)
-        bank = sum(1 for k in IWAN_K if k in cur.free)
-        reshape({r.effect for r in refinements if r.accepted} | {"hysteresis"}, bank / len(IWAN_K_FIT))
+        reshape({r.effect for r in refinements if r.accepted} | {"hysteresis"},
+                bank_cap_factor(sum(1 for k in IWAN_K if k in cur.free)))
 
     # the bank at its best before its rival law is fitted in its place: the rival is judged against
     # the bank its restart and a finer bank make of it, not against eight elements with most idle

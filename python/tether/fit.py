@@ -46,7 +46,7 @@ import numpy as np
 from . import identify_native as idn
 from .models import (IWAN_EPS, IWAN_EPS_FIT, IWAN_K, IWAN_K_FIT, ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model,
                      write_params)
-from .run import _input_pieces, input_interpolation
+from .run import _input_pieces, input_interpolation, record_period
 from .traces import Trace, read_trace
 
 __all__ = ["FitResult", "FitProgress", "FitError", "default_free_parameters", "initial_estimate", "fit_traces",
@@ -275,7 +275,7 @@ def _kinematics(trace: Trace, f_dom: float) -> _Kinematics:
         # exact derivatives of the mean period's Fourier series, below the highest excited frequency
         x = y.reshape(-1, P).mean(axis=0)
         fp = f[:P]
-        Tp = float(t[P] - t[0]) if len(t) > P else float(t[P - 1] - t[0]) * P / (P - 1)
+        Tp = record_period(t, P)
         X = np.fft.rfft(x)
         w = 2 * np.pi * np.fft.rfftfreq(P, Tp / P)
         F = np.abs(np.fft.rfft(fp))
@@ -821,7 +821,7 @@ def _experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str, floa
     inp = der = None
     if P:
         K = len(t) // P
-        Tp = float(t[P] - t[0]) if len(t) > P else float(t[P - 1] - t[0]) * P / (P - 1)
+        Tp = record_period(t, P)
         tt = t[:P]
         meas = y.reshape(K, P).mean(axis=0)
         if kind != idn.INPUT_NONE:

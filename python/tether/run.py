@@ -167,6 +167,13 @@ def input_interpolation(trace) -> str:
     return kind
 
 
+def record_period(t, P: int) -> float:
+    """The period [s] of a periodic record of ``P`` samples per period on the time grid ``t``: the
+    time from its first sample to the first of the second period, or (one period only) P / (P - 1)
+    times the span of its samples."""
+    return float(t[P] - t[0]) if len(t) > P else float(t[P - 1] - t[0]) * P / (P - 1)
+
+
 def _linear_pieces(t: np.ndarray, y: np.ndarray, periodic_period: float | None):
     """(values, derivatives[n, 3]) of the straight line from each sample to the next."""
     if periodic_period is not None:
@@ -365,7 +372,7 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
     # input reconstruction
     if periodic:
         P = periodic
-        Tp = float(t[P] - t[0]) if N > P else float(t[P - 1] - t[0]) * P / (P - 1)
+        Tp = record_period(t, P)
         h = np.diff(t[:P]).tolist() + [Tp - float(t[P - 1] - t[0])]
         if in_name:
             in_values, in_ders = _input_pieces(t[:P], trace.input[:P], Tp, input_interpolation(trace))
