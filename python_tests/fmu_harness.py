@@ -107,14 +107,22 @@ def _dispatch(env, instance_name, status, category, message):
 
 
 @functools.lru_cache(maxsize=None)
+def _logger():
+    """The one logger thunk of the harness, alive for the whole process."""
+    from fmpy.fmi2 import fmi2CallbackLoggerTYPE
+    return fmi2CallbackLoggerTYPE(_dispatch)
+
+
 def callbacks():
-    """One callback struct for all instances; messages are routed by instance name. fmpy's native
-    proxy formats the variadic arguments (the FMU logs with format "%s")."""
-    from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
-                           fmi2CallbackLoggerTYPE, calloc, free)
+    """A callback struct for one instance; messages are routed by instance name. fmpy's native
+    proxy formats the variadic arguments (the FMU logs with format "%s"). The proxy keeps one
+    logger for the whole process, the last one registered: each instance registers the harness's
+    again, so that an instance never logs through a logger another user of fmpy (tether.run)
+    registered in between."""
+    from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions, calloc, free
     from fmpy.logging import addLoggerProxy
     cb = fmi2CallbackFunctions()
-    cb.logger = fmi2CallbackLoggerTYPE(_dispatch)
+    cb.logger = _logger()
     cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
     addLoggerProxy(byref(cb))
@@ -146,7 +154,8 @@ class Instance:
         cls = FMU2Slave if kind == "cs" else FMU2Model
         self.fmu = cls(guid=md.guid, unzipDirectory=str(directory or unpacked()),
                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=self.name)
-        self.fmu.instantiate(callbacks=callbacks(), loggingOn=logging_on)
+        self.callbacks = callbacks()          # alive as long as the instance
+        self.fmu.instantiate(callbacks=self.callbacks, loggingOn=logging_on)
         self.c = self.fmu.component
         if categories:
             self.check(self.set_debug_logging(True, categories), "fmi2SetDebugLogging")

@@ -129,25 +129,37 @@ _logs: dict[int, list] = {}
 _run_ids = itertools.count(1)
 
 
+def _log_to_run(env, instance_name, status, category, message):
+    sink = _logs.get(env or 0)
+    if sink is not None:
+        sink.append((int(status), (category or b"").decode("utf-8", "replace"),
+                     (message or b"").decode("utf-8", "replace")))
+
+
+_logger_thunk: list = []
+
+
 def _make_callbacks(run_id: int):
+    """The callback struct of one run (its componentEnvironment routes the FMU's messages to the
+    run). Every run shares one logger thunk that lives as long as the process: fmpy's native proxy,
+    which formats the variadic arguments, calls the one logger registered last, for every instance;
+    a logger of its own per run, freed with the run, left the proxy calling freed code when another
+    instance logged afterwards (a crash, SIGILL, in the tests)."""
     from fmpy import calloc, free
     from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
                            fmi2CallbackLoggerTYPE)
     from fmpy.logging import addLoggerProxy
 
-    def logger(env, instance_name, status, category, message):
-        sink = _logs.get(env or 0)
-        if sink is not None:
-            sink.append((int(status), (category or b"").decode("utf-8", "replace"),
-                         (message or b"").decode("utf-8", "replace")))
-
+    with _engine_lock:
+        if not _logger_thunk:
+            _logger_thunk.append(fmi2CallbackLoggerTYPE(_log_to_run))
     cb = fmi2CallbackFunctions()
-    cb.logger = fmi2CallbackLoggerTYPE(logger)
+    cb.logger = _logger_thunk[0]
     cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
     cb.componentEnvironment = run_id
     addLoggerProxy(ctypes.byref(cb))
-    return cb, logger   # keep both alive for the instance's lifetime
+    return cb
 
 
 # ---------------------------------------------------------------------------------------------
@@ -228,7 +240,7 @@ class _Run:
         self.trace_name = trace_name
         self.run_id = next(_run_ids)
         _logs[self.run_id] = self.log = []
-        self.callbacks, self._logger = _make_callbacks(self.run_id)
+        self.callbacks = _make_callbacks(self.run_id)
         self.comp = eng.instantiate(b"tether", 1, eng.desc.guid.encode(), eng.resource_uri,
                                     ctypes.addressof(self.callbacks), 0, 0)
         if not self.comp:
