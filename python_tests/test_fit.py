@@ -196,7 +196,7 @@ def test_fitted_parameter_file_is_what_params_reads(tmp_path, run_cli):
     assert status == 0, err
     pf = read_params(params)
     assert pf.model == "cubic"
-    assert set(pf.parameters) == {"a1", "a2", "a3", "c0"}    # every parameter of the model
+    assert set(pf.parameters) == {"a1", "a2", "a3", "pow_F", "pow_eps", "pow_n", "c0"}    # every parameter of the model
     for key in ("intervals", "std_error", "correlation", "unidentifiable", "rms"):
         assert key in pf.extra
     assert pf.extra["correlation"]["parameters"] == ["a1", "a2", "a3"]

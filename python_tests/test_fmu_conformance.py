@@ -112,7 +112,8 @@ def test_unknown_value_reference(function):
 
 @pytest.mark.parametrize("name, value, needle", [("rtol", 1.0, "rtol = 1"), ("L0", -1.0, "L0 = -1"),
                                                  ("rig", 7, "rig = 7"), ("rtol", 1e-15, f"rtol = {1e-15:.17g}"),
-                                                 ("c_drag", -0.5, "c_drag = -0.5")])
+                                                 ("c_drag", -0.5, "c_drag = -0.5"), ("pow_n", 0.5, "pow_n = 0.5"),
+                                                 ("pow_F", -2.0, "pow_F = -2")])
 def test_value_out_of_range(name, value, needle):
     inst = fresh()
     single_error(inst, inst.set(name, value), "fmi2Set", needle)

@@ -311,3 +311,48 @@ def test_cubic_same_strain_for_every_length_load_rig_and_payload_balance():
           f"and rigs {spread:.3g} (relative), max |strain - root| / strain {worst:.3g}")
     assert spread < 1e-9
     assert worst < 1e-9
+
+
+def power_law_strain_at(T, a1, F_ref, eps_ref, n):
+    """Strain at which a1 e + F_ref (e / eps_ref)^n = T (T > 0): bisection on the bare power law of
+    Kawabata's loading curve, without the FMU's smoothing at zero strain."""
+    lo, hi = 0.0, 1.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if a1 * mid + F_ref * (mid / eps_ref) ** n < T:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def test_power_term_follows_the_bare_power_law_in_the_load_rig_and_at_the_payload_balance():
+    # a tether whose stiffness grows from (almost) zero as strain^0.41: the cubic's coefficients
+    # nearly off, the power term carrying the load; its smoothing at zero strain changes the law by
+    # 0.5 (n - 1) 1e-6 / y^2 relative, below 1e-4 from y = eps / pow_eps = 0.05 on
+    a1, F_ref, eps_ref, n = 5.0, 40.0, 0.01, 1.41
+    law = dict(stiffness=2, hysteresis=1, creep=False, a1=a1, a2=0.0, a3=0.0, pow_F=F_ref, pow_eps=eps_ref,
+               pow_n=n)
+    inst = H.cs(law | dict(rig=3, damping=1, c0=1.5, L0=L0, load=0.0))
+    grid = H.grid(10.0, 0.05)
+    r = H.run_cs(inst, grid, ["strain", "tension"], inputs=lambda t: {"load": 8.0 * t})
+    inst.free()
+    T = np.asarray(r["tension"])
+    use = T >= F_ref * 0.05 ** n * 2.0
+    expected = np.array([power_law_strain_at(x, a1, F_ref, eps_ref, n) for x in T[use]])
+    worst = float(np.max(np.abs(np.asarray(r["strain"])[use] - expected) / expected))
+    inst = H.cs(law | dict(rig=2, damping=1, slack=True, m=LOAD / G, g=G, L0=L0))
+    balance = inst.get("balance_elongation") / L0
+    inst.free()
+    at_balance = power_law_strain_at(LOAD, a1, F_ref, eps_ref, n)
+    print(f"FIGURE power term (a1 = {a1} N, pow_F = {F_ref} N at {eps_ref}, n = {n}): load ramp 0-80 N, "
+          f"{int(use.sum())} samples, max |strain - root| / root {worst:.3g}; payload balance at {LOAD} N "
+          f"{balance:.12g} vs {at_balance:.12g}")
+    assert use.sum() > 150
+    assert worst < 2e-4
+    assert abs(balance - at_balance) < 1e-4 * at_balance
+    # pow_F = 0 (the default) is the cubic, whatever pow_eps and pow_n
+    inst = H.cs(CUBIC | dict(rig=3, damping=1, c0=1.5, L0=L0, load=LOAD, pow_eps=0.003, pow_n=3.7))
+    strain = H.run_cs(inst, H.grid(1.0, 0.1), ["strain"])["strain"][-1]
+    inst.free()
+    assert abs(strain - cubic_strain_at(LOAD)) < 1e-9 * cubic_strain_at(LOAD)

@@ -99,9 +99,9 @@ def test_canonical_uses_largest_preset():
 
 @pytest.mark.parametrize("text, params", [
     ("linear", ["EA", "c0"]),
-    ("cubic", ["a1", "a2", "a3", "c0"]),
-    ("simplified", ["a1", "a2", "a3", "c0", "c1", "c2", "c_table_dx"] + [f"c_table_{k}" for k in range(1, 7)]
-     + ["c_drag"]),
+    ("cubic", ["a1", "a2", "a3", "pow_F", "pow_eps", "pow_n", "c0"]),
+    ("simplified", ["a1", "a2", "a3", "pow_F", "pow_eps", "pow_n", "c0", "c1", "c2", "c_table_dx"]
+     + [f"c_table_{k}" for k in range(1, 7)] + ["c_drag"]),
     ("linear+slack", ["EA", "c0"]),
 ])
 def test_parameters_exact(text, params):

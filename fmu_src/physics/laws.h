@@ -11,7 +11,8 @@
 
 /* ---- elastic law (paper: nonlinear stiffness) -------------------------------------------- */
 /* Tension of the elastic law at strain eps, not clamped: linear EA eps, or the cubic
- * a1 eps + a2 eps^2 + a3 eps^3 (the same law for every length). */
+ * a1 eps + a2 eps^2 + a3 eps^3 (the same law for every length) plus the power term
+ * pow_F sgn(eps) |eps / pow_eps|^pow_n (0 unless pow_F > 0). */
 double elastic_tension(const tether_params *p, double eps);
 /* dF/deps of the elastic law. */
 double elastic_stiffness(const tether_params *p, double eps);
@@ -22,6 +23,8 @@ double elastic_compression_limit(const tether_params *p);
 /* Strain at which the elastic law carries the tension T (T >= 0, on the rising part).
  * Returns 0 on success, -1 if T exceeds what the law can carry. */
 int elastic_strain_at(const tether_params *p, double T, double *eps);
+/* The same, with the law's rising limit (elastic_rising_limit) given. */
+int elastic_strain_below(const tether_params *p, double T, double rising_limit, double *eps);
 
 /* ---- damping (paper: dynamical property) -------------------------------------------------- */
 /* Damping coefficient: c0 (viscous) or c(x) = c0 + c1 |x| + c2 x^2 + table(|x|) + c_drag |v|

@@ -17,8 +17,9 @@ typedef struct {
     double rtol;
     /* payload */
     double m, g, x0, v0;
-    /* elastic law */
+    /* elastic law: linear EA, or the cubic a1..a3 plus a power term pow_F |eps/pow_eps|^pow_n */
     double EA, a1, a2, a3;
+    double pow_F, pow_eps, pow_n;
     /* damping: c(x) = c0 + c1 |x| + c2 x^2 + a table over |x| (knots c_table_dx apart),
      * plus c_drag |v| (velocity-quadratic drag) */
     double c0, c1, c2;

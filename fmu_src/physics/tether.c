@@ -71,7 +71,7 @@ static double iwan_strain(const tether_model *M, double eps_m)
 static int iwan_rig_strain_at(const tether_model *M, double T, double eps_guess, double *eps)
 {
     const tether_params *p = &M->p;
-    const double top = elastic_rising_limit(p);
+    const double top = M->d.rising_limit;
 #define G(e) (elastic_tension(p, (e)) + iwan_force(p, &M->d.iwan, (e)) - T)
     double lo = eps_guess, hi = eps_guess, step = 1e-6;
     if (lo > top) lo = hi = top;
@@ -168,9 +168,9 @@ static void evaluate(const tether_model *M, double t, const double *y, tether_in
             if (p->hysteresis == HYSTERESIS_KAWABATA) {
                 target = kawabata_strain_at(p, &M->d.kawabata, ahead);
             } else if (p->hysteresis == HYSTERESIS_IWAN) {
-                if (iwan_rig_strain_at(M, ahead, s->eps_m, &target) != 0) target = elastic_rising_limit(p);
-            } else if (elastic_strain_at(p, ahead, &target) != 0) {
-                target = elastic_rising_limit(p);
+                if (iwan_rig_strain_at(M, ahead, s->eps_m, &target) != 0) target = M->d.rising_limit;
+            } else if (elastic_strain_below(p, ahead, M->d.rising_limit, &target) != 0) {
+                target = M->d.rising_limit;
             }
             s->eps_m_rate_load = (target - s->eps_m) / TETHER_LOAD_TRACKING_TIME;
         }
@@ -205,6 +205,9 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (!(p->g >= 0.0)) FAIL("g = %g m/s2: expected g >= 0", p->g);
     if (p->stiffness == STIFFNESS_LINEAR && p->hysteresis != HYSTERESIS_KAWABATA && !(p->EA > 0.0)) FAIL("EA = %g N: the linear law needs EA > 0", p->EA);
     if (p->stiffness == STIFFNESS_CUBIC && p->hysteresis != HYSTERESIS_KAWABATA && !(p->a1 > 0.0)) FAIL("a1 = %g N: the cubic law needs a1 > 0", p->a1);
+    if (!(p->pow_F >= 0.0)) FAIL("pow_F = %g N: expected pow_F >= 0", p->pow_F);
+    if (!(p->pow_eps > 0.0) || !isfinite(p->pow_eps)) FAIL("pow_eps = %g: the power term's reference strain must be positive", p->pow_eps);
+    if (!(p->pow_n >= 1.0 && p->pow_n <= 4.0)) FAIL("pow_n = %g: expected an exponent in [1, 4]", p->pow_n);
     if (!(p->c0 >= 0.0)) FAIL("c0 = %g N.s/m: expected c0 >= 0", p->c0);
     if (!(p->c1 >= 0.0)) FAIL("c1 = %g N.s/m2: expected c1 >= 0", p->c1);
     if (!(p->c2 >= 0.0)) FAIL("c2 = %g N.s/m3: expected c2 >= 0", p->c2);
@@ -257,7 +260,7 @@ static int static_strain_at(const tether_model *M, double T, double *eps)
         *eps = T <= 0.0 ? 0.0 : p->kaw_eps_ref * pow(T / p->kaw_F_ref, 1.0 / kawabata_loading_exponent(p));
         return 0;
     }
-    return elastic_strain_at(p, T, eps);
+    return elastic_strain_below(p, T, M->d.rising_limit, eps);
 }
 
 int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t len)
@@ -269,6 +272,8 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
     iwan_reset(&M->d.iwan, 0.0);
     M->d.balance_elongation = 0.0;
     M->d.warned_rising_limit = 0;
+    M->d.rising_limit = elastic_rising_limit(p);
+    M->d.compression_limit = elastic_compression_limit(p);
     const double z0 = p->hysteresis == HYSTERESIS_BOUCWEN ? p->z0 : 0.0;
     double eps;
     if (p->rig == RIG_PAYLOAD) {
@@ -276,7 +281,7 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
         if (static_strain_at(M, W, &eps) != 0) {
             snprintf(msg, len, "m = %g kg, g = %g m/s2: the weight %g N exceeds the largest tension %g N the "
                      "cubic law carries (at strain %g, where dF/deps reaches 0)", p->m, p->g, W,
-                     elastic_tension(p, elastic_rising_limit(p)), elastic_rising_limit(p));
+                     elastic_tension(p, M->d.rising_limit), M->d.rising_limit);
             return -1;
         }
         M->d.balance_elongation = eps * M->in.L0;
@@ -294,12 +299,12 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
         const double T0 = input_load(M, t0) - z0;
         if (static_strain_at(M, T0, &eps) != 0) {
             snprintf(msg, len, "load = %g N: exceeds the largest tension %g N the cubic law carries (at strain %g)",
-                     input_load(M, t0), elastic_tension(p, elastic_rising_limit(p)), elastic_rising_limit(p));
+                     input_load(M, t0), elastic_tension(p, M->d.rising_limit), M->d.rising_limit);
             return -1;
         }
         if (p->hysteresis == HYSTERESIS_IWAN) {
             /* a virgin tether, its elements unloaded at zero strain, loaded to the first load */
-            if (T0 > 0.0 && iwan_rig_strain_at(M, T0, eps, &eps) != 0) eps = elastic_rising_limit(p);
+            if (T0 > 0.0 && iwan_rig_strain_at(M, T0, eps, &eps) != 0) eps = M->d.rising_limit;
             iwan_advance(p, &M->d.iwan, eps);
         }
         y[ST_LOAD_ELONGATION] = eps * M->in.L0;
@@ -492,12 +497,13 @@ int tether_check_range(tether_model *M, double t, const double *y, char *msg, si
     tether_instant s;
     evaluate(M, t, y, &s);
     if (slack_active(M) && !M->d.taut) return 0;
-    const double upper = elastic_rising_limit(&M->p), lower = elastic_compression_limit(&M->p);
+    const double upper = M->d.rising_limit, lower = M->d.compression_limit;
     if (s.eps_m > upper || s.eps_m < lower) {
         M->d.warned_rising_limit = 1;
         snprintf(msg, len, "t = %.9g s: strain %.6g is outside [%.6g, %.6g], where the cubic law a1 = %g, a2 = %g, "
-                 "a3 = %g rises (beyond, dF/deps <= 0); results there are an extrapolation of the fit",
-                 t, s.eps_m, lower, upper, M->p.a1, M->p.a2, M->p.a3);
+                 "a3 = %g (power term pow_F = %g, pow_eps = %g, pow_n = %g) rises (beyond, dF/deps <= 0); results "
+                 "there are an extrapolation of the fit",
+                 t, s.eps_m, lower, upper, M->p.a1, M->p.a2, M->p.a3, M->p.pow_F, M->p.pow_eps, M->p.pow_n);
         return 1;
     }
     return 0;

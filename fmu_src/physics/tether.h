@@ -62,6 +62,9 @@ typedef struct {
     iwan_memory iwan;         /* the Iwan elements' spring strains at the last reversal */
     double balance_elongation;/* u_bal, payload rig */
     int warned_rising_limit;  /* the cubic was reported outside its rising range */
+    /* the elastic law's rising range [compression_limit, rising_limit], computed once at
+     * initialisation (with a power term it takes a search, and the load rig asks at every step) */
+    double rising_limit, compression_limit;
 } tether_discrete;
 
 typedef struct {

@@ -675,6 +675,13 @@ def _load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> 
         d, Tl = np.concatenate(ds), np.concatenate(Ts)
         elastic = [d, d ** 2, d ** 3] if spec.stiffness == "cubic" else [d]
         lo = [0.0] + ([-np.inf, -np.inf] if spec.stiffness == "cubic" else [])
+        # a power term given (fixed, e.g. the one a discovery kept): its exponent and reference
+        # strain stay, its tension is estimated with the cubic's coefficients and the bank
+        power = spec.stiffness == "cubic" and float(defaults.get("pow_F", 0.0)) > 0.0
+        if power:
+            elastic.append(cubic_tension({"pow_F": 1.0, "pow_eps": defaults["pow_eps"], "pow_n": defaults["pow_n"]},
+                                         np.nan_to_num(d)))
+            lo.append(0.0)
         ok = np.isfinite(d) & np.isfinite(Tl)
         span = float(np.max(np.abs(d[ok]))) if ok.any() else 0.0
         best = None
@@ -707,6 +714,8 @@ def _load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> 
             if spec.stiffness == "cubic":
                 if coef[0] > 0:
                     est.update(a1=float(coef[0]), a2=float(coef[1]), a3=float(coef[2]))
+                    if power:
+                        est["pow_F"] = float(coef[3])
             elif coef[0] > 0:
                 est["EA"] = float(coef[0])
     if spec.hysteresis == "kawabata":
@@ -723,7 +732,8 @@ def _load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> 
         creep_traces = [tr for tr in traces if tr.experiment == "creep"]
         if creep_traces:
             if spec.stiffness == "cubic":
-                inv = _cubic_inverse(*(est.get(n, defaults[n]) for n in ("a1", "a2", "a3")))
+                inv = _cubic_inverse({n: est.get(n, defaults[n])
+                                      for n in ("a1", "a2", "a3", "pow_F", "pow_eps", "pow_n")})
             else:
                 EA = est.get("EA", defaults.get("EA", 3500.0))
                 inv = lambda T: np.asarray(T) / EA  # noqa: E731
@@ -738,8 +748,29 @@ def _load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> 
     return est
 
 
-def _cubic_inverse(a1, a2, a3):
-    """Strain of the cubic law at tension T, on its rising branch (bisection on [0, eps_rise])."""
+#: the power term's smoothing at zero strain (physics/elastic.c)
+POWER_SMOOTHING = 1e-3
+
+
+def cubic_tension(params: Mapping[str, float], eps):
+    """Tension of the FMU's cubic elastic law at strain ``eps``: a1 eps + a2 eps^2 + a3 eps^3 plus,
+    where pow_F > 0, the power term pow_F y (y^2 + d^2)^((pow_n - 1)/2), y = eps/pow_eps,
+    d = POWER_SMOOTHING: sgn(eps) |y|^pow_n made smooth through 0 (as physics/elastic.c)."""
+    e = np.asarray(eps, float)
+    a1, a2, a3 = (float(params.get(n, 0.0)) for n in ("a1", "a2", "a3"))
+    F = e * (a1 + e * (a2 + e * a3))
+    pf = float(params.get("pow_F", 0.0))
+    if pf > 0.0:
+        y = e / float(params["pow_eps"])
+        F = F + pf * y * (y * y + POWER_SMOOTHING ** 2) ** (0.5 * (float(params.get("pow_n", 1.0)) - 1.0))
+    return F
+
+
+def _cubic_inverse(params: Mapping[str, float]):
+    """Strain of the cubic law (with its power term, cubic_tension) at tension T, on its rising
+    branch: bisection on [0, eps_rise], eps_rise the cubic's first root of dF/deps (the power
+    term's stiffness is never negative: the law rises at least that far)."""
+    a1, a2, a3 = (float(params.get(n, 0.0)) for n in ("a1", "a2", "a3"))
     roots = np.roots([3 * a3, 2 * a2, a1]) if a3 != 0 else np.array([-a1 / (2 * a2)] if a2 else [])
     rising = [float(r.real) for r in np.atleast_1d(roots) if abs(r.imag) < 1e-12 and r.real > 0]
     hi0 = min(rising) if rising else 1.0
@@ -750,7 +781,7 @@ def _cubic_inverse(a1, a2, a3):
         hi = np.full_like(T, hi0)
         for _ in range(60):
             mid = 0.5 * (lo + hi)
-            below = a1 * mid + a2 * mid ** 2 + a3 * mid ** 3 < T
+            below = cubic_tension(params, mid) < T
             lo = np.where(below, mid, lo)
             hi = np.where(below, hi, mid)
         return 0.5 * (lo + hi)

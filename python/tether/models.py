@@ -68,7 +68,7 @@ TRACE_PARAMETERS = ("L0", "m", "g", "x0", "v0")
 EXPERIMENT_RIG = {"free_vibration": "payload", "forced": "payload", "load_unload": "load", "creep": "load"}
 
 _PARAMS_LINEAR = ("EA",)
-_PARAMS_CUBIC = ("a1", "a2", "a3")
+_PARAMS_CUBIC = ("a1", "a2", "a3", "pow_F", "pow_eps", "pow_n")
 _PARAMS_VISCOUS = ("c0",)
 _PARAMS_DISPLACEMENT = ("c0", "c1", "c2", "c_table_dx", "c_table_1", "c_table_2", "c_table_3", "c_table_4",
                         "c_table_5", "c_table_6", "c_drag")
@@ -86,6 +86,9 @@ _PARAMS_IWAN = IWAN_K + IWAN_EPS
 _PARAMS_KAWABATA = ("kaw_LT", "kaw_RT", "kaw_eps_ref", "kaw_F_ref", "kaw_residual")
 #: the elastic law's terms (linear or cubic), and each hysteresis law's
 ELASTIC_PARAMETERS = _PARAMS_LINEAR + _PARAMS_CUBIC
+#: the elastic law's terms that are forces (N): a stiffer or softer law scales these, not the power
+#: term's reference strain and exponent
+ELASTIC_FORCES = ("EA", "a1", "a2", "a3", "pow_F")
 HYSTERESIS_PARAMETERS = {"kawabata": _PARAMS_KAWABATA, "boucwen": _PARAMS_BOUCWEN, "iwan": _PARAMS_IWAN}
 _PARAMS_CREEP = ("creep_J1", "creep_tau1", "creep_J2", "creep_tau2", "creep_J3", "creep_tau3",
                  "slip_capacity0", "slip_rate", "slip_knee", "slip_load_half", "slip_load_exponent",
