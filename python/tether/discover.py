@@ -1938,6 +1938,15 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         pf = fit(part, m.spec, m.effects, [m.params], sc_part)
         return _heldout(trace, m.spec, pf.params, first) if pf.ok else float("inf")
 
+    def model_cap_factor(m: ModelFit) -> float:
+        """The time cap for fits of ``m``'s kind, as a multiple of the search's: the cap is
+        2000 simulations of the start model, and a model with an Iwan bank and a table of c(x)
+        simulates several times slower (eval record 26: the restart of the idle elements was
+        abandoned at the start model's 5 s, 1.94 x noise in the end, 1.18 where it ran)."""
+        t = time.process_time()
+        predict(trace, m.spec, m.params)
+        return max(1.0, 2000.0 * (time.process_time() - t) / cap)
+
     def shape_fit(tr, sp, eff, starts, extra, own_thread=False, cap_factor=1.0):
         return fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra, held=_replaced(extra),
                    own_thread=own_thread, cap_factor=cap_factor)
@@ -2232,9 +2241,10 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         for stage, where in ((restart_idle_elements, "while the idle Iwan elements were restarted"),
                              (finer_bank, "while the Iwan bank was made finer")):
             if not budget_hit[0]:
+                mf = model_cap_factor(cur)
                 kept |= adopt(stage(trace, part, first, cur, cur_held, sigma,
-                                    lambda tr, sp, eff, starts, extra=(), **kw: shape_fit(tr, sp, eff, starts, extra,
-                                                                                          **kw), say), where)
+                                    lambda tr, sp, eff, starts, extra=(), cap_factor=1.0, **kw: shape_fit(
+                                        tr, sp, eff, starts, extra, cap_factor=cap_factor * mf, **kw), say), where)
         if not kept or budget_hit[0] or _gap(cur.rms, sigma) < IWAN_STAGES_GAP * sigma:
             return
         shape_free = tuple(dict.fromkeys(shape_free + tuple(cur.shape)))
