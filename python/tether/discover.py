@@ -1612,6 +1612,10 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
 #: with the cubic alone: 0.098 s against 0.017 s on 2478 samples)
 RESHAPED_RIVAL_CAP_FACTOR = 4.0
 
+#: the least time cap of the Iwan bank's last stages (restart, finer bank), as a multiple of the
+#: search's
+IWAN_STAGE_CAP_FACTOR = 3.0
+
 #: the laws of one effect that stand in for each other: the law that won an effect's step is fitted
 #: again at the end with its rival in its place (rival_law)
 RIVAL_LAWS = {"hysteresis": ("boucwen", "iwan")}
@@ -1942,10 +1946,12 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         """The time cap for fits of ``m``'s kind, as a multiple of the search's: the cap is
         2000 simulations of the start model, and a model with an Iwan bank and a table of c(x)
         simulates several times slower (eval record 26: the restart of the idle elements was
-        abandoned at the start model's 5 s, 1.94 x noise in the end, 1.18 where it ran)."""
+        abandoned at the start model's 5 s, 1.94 x noise in the end, 1.18 where it ran); at least
+        IWAN_STAGE_CAP_FACTOR, for a restarted bank's start simulates slower than the bank it
+        comes from (26 at the floor of 5 s: kept alone, abandoned beside another run)."""
         t = time.process_time()
         predict(trace, m.spec, m.params)
-        return max(1.0, 2000.0 * (time.process_time() - t) / cap)
+        return max(IWAN_STAGE_CAP_FACTOR, 2000.0 * (time.process_time() - t) / cap)
 
     def shape_fit(tr, sp, eff, starts, extra, own_thread=False, cap_factor=1.0):
         return fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra, held=_replaced(extra),
