@@ -5,7 +5,8 @@ Model strings
 A model is a preset, optionally followed by effects or laws joined with ``+``::
 
     linear                    linear spring EA + viscous damper c0 (the trace-format baseline)
-    cubic                     cubic tension-strain law a1 a2 a3 + viscous damper
+    cubic                     cubic tension-strain law a1 a2 a3 (power term pow_F pow_eps pow_n, off
+                              unless pow_F > 0) + viscous damper
     simplified                cubic + displacement-dependent damping c(x) (the paper's simplified model)
     kawabata                  Kawabata loading/unloading branches + viscous damper
     full                      cubic + Bouc-Wen + displacement-dependent damping (the paper's full model)
