@@ -204,7 +204,7 @@ def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, c
     cur_part = D.fit_model(part, spec, cur.effects, [cur.params], sc_part)
     held = D._heldout(tr, spec, cur_part.params, first)
 
-    def fit(t, sp, eff, starts, baseline_rms=None):
+    def fit(t, sp, eff, starts, baseline_rms=None, cap_factor=1.0):
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, baseline_rms=baseline_rms)
 
     lines = []
@@ -554,7 +554,11 @@ def test_bundled_trace_two_effects_json_report_and_rerun(tmp_path, run_cli):
         for w in s["where"]:
             assert 0.0 <= w["start_s"] < w["end_s"] <= t_end + 1e-9
         assert s["evidence"]
-    assert doc["rmse_final"] == pytest.approx(prev)
+    # the final model is the last step's, or the last shape refinement kept after it (the power
+    # term of the cubic follows the generator's power law: 1.41 -> 1.01 x noise on this record)
+    kept = [r for r in doc["refinements"] if r["accepted"]]
+    assert doc["rmse_final"] == pytest.approx(kept[-1]["rmse_after"] if kept else prev)
+    assert doc["rmse_final"] <= prev
     # every candidate fitted says what it cost, the rejected ones too (their curves are dropped)
     fitted = [c for r in doc["rounds"] for c in r["candidates"]
               if c["rmse"] is not None and math.isfinite(c["rmse"])]
