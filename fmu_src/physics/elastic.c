@@ -116,11 +116,6 @@ double elastic_compression_limit(const tether_params *p)
     return below;
 }
 
-int elastic_strain_at(const tether_params *p, double T, double *eps)
-{
-    return elastic_strain_below(p, T, elastic_rising_limit(p), eps);
-}
-
 int elastic_strain_below(const tether_params *p, double T, double rising_limit, double *eps)
 {
     if (T == 0.0) { *eps = 0.0; return 0; }

@@ -20,10 +20,9 @@ double elastic_stiffness(const tether_params *p, double eps);
 double elastic_rising_limit(const tether_params *p);
 /* Smallest (compressive) strain down to which the law keeps rising; -HUGE_VAL if it always rises. */
 double elastic_compression_limit(const tether_params *p);
-/* Strain at which the elastic law carries the tension T (T >= 0, on the rising part).
- * Returns 0 on success, -1 if T exceeds what the law can carry. */
-int elastic_strain_at(const tether_params *p, double T, double *eps);
-/* The same, with the law's rising limit (elastic_rising_limit) given. */
+/* Strain at which the elastic law carries the tension T (T >= 0, on the rising part up to
+ * rising_limit, the law's elastic_rising_limit: computed once by the caller, for it takes a search
+ * with the power term). Returns 0 on success, -1 if T exceeds what the law can carry. */
 int elastic_strain_below(const tether_params *p, double T, double rising_limit, double *eps);
 
 /* ---- damping (paper: dynamical property) -------------------------------------------------- */
