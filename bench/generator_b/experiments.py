@@ -150,8 +150,9 @@ def _calibrated_force(model, t, inp):
     runs = {}
 
     def gap(log_scale: float) -> float:
-        res = dynamic.simulate(model, t, 0.0, 0.0, force_function(inp, math.exp(log_scale)))
-        runs[log_scale] = res
+        if log_scale not in runs:
+            runs[log_scale] = dynamic.simulate(model, t, 0.0, 0.0, force_function(inp, math.exp(log_scale)))
+        res = runs[log_scale]
         return math.log(max(_excursion(res, inp["target"]), 1e-12) / inp["target"]["value"])
 
     lo = hi = 0.0
