@@ -16,7 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.generator_b import GenerationError, generate, read_trace, suite, write_trace  # noqa: E402
 from bench.generator_b import cli, dynamic, quasistatic  # noqa: E402
-from bench.generator_b.experiments import REVEALABLE, payload_model, sample_times  # noqa: E402
+from bench.generator_b.experiments import REVEALABLE, payload_model  # noqa: E402
 from bench.generator_b.laws import (AmplitudeDamping, BurgersCreep, CoulombViscousDamping,  # noqa: E402
                                     DahlHysteresis, ExponentialElastic, FindleyCreep, LinearElastic,
                                     StopBankHysteresis, ToeLinearElastic, ViscousDamping)
@@ -69,6 +69,51 @@ def test_forced_nonlinear_payload_matches_a_second_integrator():
         ref = solve_ivp(rhs, (0, t[-1]), [model.u_balance, 0.0], t_eval=t, method="DOP853",
                         rtol=1e-12, atol=1e-14).y[0] - model.u_balance
         assert np.max(np.abs(x - ref)) < 1e-8 * max(1.0, np.max(np.abs(ref)) / 0.01)
+
+
+def test_toe_tether_with_dahl_friction_matches_a_second_integrator():
+    L, m = 14.0, 4.0
+    elastic = ToeLinearElastic(k_toe=900.0, EA=3500.0, eps_t=0.009, width=0.0015)
+    law = DahlHysteresis(k=30000.0, F_sat=0.8)
+    model = payload(elastic, ViscousDamping(0.2), law, L=L, m=m)
+    t = np.arange(0, 6.0, 1 / 200)
+
+    def force(tt):
+        return 4.0 * np.sin(2 * np.pi * 1.3 * np.asarray(tt, float))
+
+    x = dynamic.simulate(model, t, 0.03, 0.0, force).x
+
+    def rhs(tt, y):
+        u, v, z = y
+        T = elastic.tension(u / L) + 0.2 * v + z
+        return [v, G + (float(force(tt)) - T) / m, law.rate(z, v / L)]
+
+    ref = solve_ivp(rhs, (0, t[-1]), [model.u_balance + 0.03, 0.0, 0.0], t_eval=t, method="DOP853",
+                    rtol=1e-12, atol=1e-14, max_step=2e-3).y[0] - model.u_balance
+    assert np.max(np.abs(x - ref)) < 1e-8
+
+
+def test_stop_bank_free_vibration_matches_jenkins_cells_integrated_by_scipy():
+    """Three stop cells as Jenkins elements (a spring state that stops growing at +-r_i),
+    integrated by DOP853 as ODEs; generator B carries them as a strain-path memory instead."""
+    L, m, EA, c = 12.0, 3.5, 3000.0, 0.05
+    law = StopBankHysteresis(stiffness=500.0, r_max=2.5e-3, alpha=1.0, count=3)
+    model = payload(LinearElastic(EA), ViscousDamping(c), law, L=L, m=m)
+    t = np.arange(0, 3.0, 1 / 200)
+    x = dynamic.simulate(model, t, 0.06, 0.0).x
+    w, r = np.array(law.weights), np.array(law.radii)
+
+    def rhs(tt, y):
+        u, v, s = y[0], y[1], y[2:]
+        rate = v / L
+        slipping = ((s >= r) & (rate > 0)) | ((s <= -r) & (rate < 0))
+        T = EA * u / L + c * v + w @ np.clip(s, -r, r)
+        return np.concatenate([[v, G - T / m], np.where(slipping, 0.0, rate)])
+
+    y0 = np.concatenate([[model.u_balance + 0.06, 0.0], np.zeros(3)])
+    ref = solve_ivp(rhs, (0, t[-1]), y0, t_eval=t, method="DOP853", rtol=1e-10, atol=1e-13,
+                    max_step=1e-3).y[0] - model.u_balance
+    assert np.max(np.abs(x - ref)) < 1e-7
 
 
 def test_undamped_exponential_tether_conserves_energy():
@@ -192,6 +237,19 @@ def test_quasi_static_dahl_loop_follows_the_closed_form_branches():
     assert np.max(np.abs(branch - down[1:])) < 1e-9
     at_20_up, at_20_down = eps[np.flatnonzero(up == 20.0)[0]], eps[n_up - 1 + np.flatnonzero(down == 20.0)[0]]
     assert at_20_down - at_20_up > 1e-4
+
+
+def test_quasi_static_stop_bank_follows_the_virgin_curve_then_masing():
+    EA = 3000.0
+    law = StopBankHysteresis(stiffness=600.0, r_max=3e-3, alpha=0.8, count=20)
+    up, down = np.linspace(4.0, 45.0, 83), np.linspace(45.0, 12.0, 67)
+    eps = quasistatic.elastic_strains(LinearElastic(EA), law, np.concatenate([up, down[1:]]))
+    rise = eps[:len(up)] - eps[0]
+    virgin = np.array([law.virgin(q) for q in rise])
+    assert np.max(np.abs(EA * rise + virgin - (up - 4.0))) < 1e-9
+    fall = eps[len(up) - 1] - eps[len(up):]
+    masing = np.array([2 * law.virgin(d / 2) for d in fall])
+    assert np.max(np.abs(EA * fall + masing - (45.0 - down[1:]))) < 1e-9
 
 
 # ---------------------------------------------------------------------------------------------

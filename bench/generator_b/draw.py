@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from .experiments import REVEALABLE
-from .laws import elastic_strain_for, ExponentialElastic, LinearElastic, ToeLinearElastic
+from .experiments import LAWS, REVEALABLE
+from .laws import elastic_strain_for
 
 G = 9.81
 EFFECT_LAWS = {
@@ -103,7 +103,7 @@ def _draw_dynamic(rng, spec: dict) -> None:
         amplitude = min(_u(rng, 0.35, 0.7) * u_lin, 0.2)
         strain_span = 2 * amplitude / L
     spec["params"]["elastic"] = _dynamic_elastic(rng, laws["elastic"], EA_b, m * G, strain_span, eps_lin)
-    elastic = _law(spec["params"]["elastic"], laws["elastic"])
+    elastic = LAWS[laws["elastic"]](**spec["params"]["elastic"])
     u_b = L * elastic_strain_for(elastic, m * G)
     if laws["slack"]:
         amplitude = _u(rng, 1.15, 1.6) * u_b
@@ -115,10 +115,6 @@ def _draw_dynamic(rng, spec: dict) -> None:
     if laws["hysteresis"]:
         spec["params"]["hysteresis"] = _dynamic_hysteresis(rng, laws["hysteresis"], k, L, amplitude, EA_b)
     spec["noise_sigma"] = min(_log_u(rng, 3e-5, 2e-4), amplitude / 300.0)
-
-
-def _law(params: dict, name: str):
-    return {"linear": LinearElastic, "exponential": ExponentialElastic, "toe_linear": ToeLinearElastic}[name](**params)
 
 
 def _dynamic_elastic(rng, name: str, EA_b: float, weight: float, strain_span, eps_lin: float) -> dict:

@@ -1,10 +1,17 @@
-"""Payload on the tether: classical RK4 with fixed substeps and located slack events.
+"""Payload on the tether: classical RK4 with fixed substeps, located slack switches and located
+velocity reversals.
 
 Elongation u [m], velocity v [m/s], displacement from balance x = u - u_b. The tether pulls the
 payload up with T = elastic(eps) + damping(x, v) + hysteresis; gravity and the external force push
 it down: m v' = m g + f(t) - T. With slack on, a tether whose T would fall below zero carries
 nothing and the payload flies free; the switch is located inside the substep (Brent's method on
 the substep's length) and the integration restarts from there in the other mode.
+
+Both hysteresis laws are rate-independent, so they are carried as a memory of the strain path,
+not as ODE states: within a substep the strain moves one way (the substep is cut where the
+velocity changes sign), and the hysteresis force is then the law's exact function of the strain
+reached (Dahl's branch, the stops' clip). This is exact along monotone pieces and has no
+stiffness limit, however sharp the friction.
 """
 
 from __future__ import annotations
@@ -19,6 +26,7 @@ from scipy.optimize import brentq
 from .laws import DahlHysteresis, StopBankHysteresis
 
 MAX_SUBSTEP_S = 1e-3   # RK4 error at 1 Hz and this step is ~(2 pi 1e-3)^4 per unit time: negligible
+THETA_TOL = 1e-14      # where in a substep a switch or a reversal is located, as a fraction of it
 
 
 @dataclass
@@ -45,55 +53,64 @@ class DynamicResult:
 
 
 class _System:
-    """Right-hand side and switching function of one model and one input."""
+    """Right-hand side, tension and hysteresis memory of one model and one input.
 
-    def __init__(self, model: PayloadModel, force: Callable[[float], float]):
+    The memory `p` is, for Dahl, [z, strain] at the last cut; for the stop bank, the plays."""
+
+    def __init__(self, model: PayloadModel, force: Callable):
         self.m = model
         self.f = force
         self.L = model.length_m
         self.dahl = model.hysteresis if isinstance(model.hysteresis, DahlHysteresis) else None
         self.stops = model.hysteresis if isinstance(model.hysteresis, StopBankHysteresis) else None
+        self.has_memory = model.hysteresis is not None
         self.eps_ref = 0.0
 
-    def tension(self, u: float, v: float, z: float, p: list) -> float:
+    def initial_memory(self, u: float) -> list:
+        self.eps_ref = u / self.L
+        if self.dahl is not None:
+            return [0.0, self.eps_ref]
+        return [0.0] * (len(self.stops.radii) if self.stops is not None else 0)
+
+    def hysteresis_force(self, eps: float, p: list) -> float:
+        if self.dahl is not None:
+            return self.dahl.branch(p[0], eps - p[1])
+        if self.stops is not None:
+            return self.stops.force(p, eps - self.eps_ref)
+        return 0.0
+
+    def advance_memory(self, p: list, u: float) -> list:
+        eps = u / self.L
+        if self.dahl is not None:
+            return [self.dahl.branch(p[0], eps - p[1]), eps]
+        if self.stops is not None:
+            return self.stops.outputs(p, eps - self.eps_ref)
+        return p
+
+    def tension(self, u: float, v: float, p: list) -> float:
         """Tension the tether would carry (before the slack clamp)."""
         eps = u / self.L
-        T = self.m.elastic.tension(eps) + self.m.damping.force(u - self.m.u_balance, v)
-        if self.dahl is not None:
-            T += z
-        elif self.stops is not None:
-            T += self.stops.force(p, eps - self.eps_ref)
-        return T
+        return (self.m.elastic.tension(eps) + self.m.damping.force(u - self.m.u_balance, v)
+                + self.hysteresis_force(eps, p))
 
-    def rhs(self, f: float, u: float, v: float, z: float, slack: bool, p: list):
-        """Derivatives under the external force f [N]."""
-        T = 0.0 if slack else self.tension(u, v, z, p)
-        dv = self.m.gravity + (f - T) / self.m.mass_kg
-        dz = self.dahl.rate(z, v / self.L) if self.dahl is not None else 0.0
-        return v, dv, dz
-
-    def forces(self, t: float, h: float) -> tuple:
-        return float(self.f(t)), float(self.f(t + 0.5 * h)), float(self.f(t + h))
+    def accel(self, f: float, u: float, v: float, slack: bool, p: list) -> float:
+        T = 0.0 if slack else self.tension(u, v, p)
+        return self.m.gravity + (f - T) / self.m.mass_kg
 
     def rk4(self, t: float, y: tuple, h: float, slack: bool, p: list, forces: tuple | None = None) -> tuple:
         """One classical RK4 step; `forces` = f at the start, middle and end (else computed)."""
-        fa, fm, fb = forces if forces is not None else self.forces(t, h)
-        u, v, z = y
-        a = self.rhs(fa, u, v, z, slack, p)
-        b = self.rhs(fm, u + 0.5 * h * a[0], v + 0.5 * h * a[1], z + 0.5 * h * a[2], slack, p)
-        c = self.rhs(fm, u + 0.5 * h * b[0], v + 0.5 * h * b[1], z + 0.5 * h * b[2], slack, p)
-        d = self.rhs(fb, u + h * c[0], v + h * c[1], z + h * c[2], slack, p)
-        k = h / 6.0
-        return (u + k * (a[0] + 2 * b[0] + 2 * c[0] + d[0]),
-                v + k * (a[1] + 2 * b[1] + 2 * c[1] + d[1]),
-                z + k * (a[2] + 2 * b[2] + 2 * c[2] + d[2]))
-
-    def advance_memory(self, p: list, u: float) -> list:
-        return self.stops.outputs(p, u / self.L - self.eps_ref) if self.stops is not None else p
-
-
-def _wants_switch(slack_mode: bool, tension: float) -> bool:
-    return tension > 0.0 if slack_mode else tension < 0.0
+        if forces is None:
+            forces = (float(self.f(t)), float(self.f(t + 0.5 * h)), float(self.f(t + h)))
+        fa, fm, fb = forces
+        u, v = y
+        a = self.accel(fa, u, v, slack, p)
+        vb = v + 0.5 * h * a
+        b = self.accel(fm, u + 0.5 * h * v, vb, slack, p)
+        vc = v + 0.5 * h * b
+        c = self.accel(fm, u + 0.5 * h * vb, vc, slack, p)
+        vd = v + h * c
+        d = self.accel(fb, u + h * vc, vd, slack, p)
+        return (u + h / 6.0 * (v + 2 * vb + 2 * vc + vd), v + h / 6.0 * (a + 2 * b + 2 * c + d))
 
 
 def simulate(model: PayloadModel, t_out: np.ndarray, x0: float, v0: float,
@@ -102,12 +119,11 @@ def simulate(model: PayloadModel, t_out: np.ndarray, x0: float, v0: float,
     `force(t)` [N] takes a float or an array of times."""
     sys = _System(model, force or (lambda t: 0.0 * np.asarray(t)))
     u = model.u_balance + x0
-    sys.eps_ref = u / model.length_m
-    y, p = (u, v0, 0.0), [0.0] * (len(model.hysteresis.radii) if sys.stops else 0)
-    slack = starts_slack = model.slack and sys.tension(u, v0, 0.0, p) < 0.0
+    y, p = (u, v0), sys.initial_memory(u)
+    slack = starts_slack = model.slack and sys.tension(u, v0, p) < 0.0
     res = DynamicResult(t=np.asarray(t_out, float), x=np.empty(len(t_out)), v=np.empty(len(t_out)))
     res.x[0], res.v[0] = x0, v0
-    res.min_tension_candidate = sys.tension(u, v0, 0.0, p)
+    res.min_tension_candidate = sys.tension(u, v0, p)
     n_subs, f = _force_grid(sys.f, res.t)
     base = 0
     for k in range(1, len(t_out)):
@@ -116,7 +132,7 @@ def simulate(model: PayloadModel, t_out: np.ndarray, x0: float, v0: float,
         for j in range(n_sub):
             i = base + 2 * j
             y, p, slack = _substep(sys, res, t0 + j * h, y, h, slack, p, (f[i], f[i + 1], f[i + 2]))
-            res.min_tension_candidate = min(res.min_tension_candidate, sys.tension(y[0], y[1], y[2], p))
+            res.min_tension_candidate = min(res.min_tension_candidate, sys.tension(y[0], y[1], p))
         base += 2 * n_sub
         res.x[k], res.v[k] = y[0] - model.u_balance, y[1]
     res.starts_slack = starts_slack
@@ -146,21 +162,32 @@ def _slack_time(events: list, starts_slack: bool, t0: float, t_end: float) -> fl
     return total + (t_end - since if since is not None else 0.0)
 
 
+def _wants_switch(slack_mode: bool, tension: float) -> bool:
+    return tension > 0.0 if slack_mode else tension < 0.0
+
+
 def _substep(sys: _System, res: DynamicResult, t: float, y: tuple, h: float, slack: bool, p: list,
              forces: tuple):
-    """One substep, split at every slack switch inside it."""
+    """One substep, cut at every slack switch and velocity reversal inside it."""
     remaining = h
     while remaining > 0.0:
         y1 = sys.rk4(t, y, remaining, slack, p, forces if remaining == h else None)
-        if not (sys.m.slack and _wants_switch(slack, sys.tension(y1[0], y1[1], y1[2], p))):
+        switch = sys.m.slack and _wants_switch(slack, sys.tension(y1[0], y1[1], p))
+        reversal = sys.has_memory and y[1] * y1[1] < 0.0
+        if not (switch or reversal):
             return y1, sys.advance_memory(p, y1[0]), slack
-        theta = _switch_fraction(sys, t, y, remaining, slack, p)
+        theta_switch = _switch_fraction(sys, t, y, remaining, slack, p) if switch else math.inf
+        theta_rev = _reversal_fraction(sys, t, y, remaining, slack, p) if reversal else math.inf
+        theta = min(theta_switch, theta_rev)
         y = sys.rk4(t, y, theta * remaining, slack, p) if theta > 0.0 else y
+        if theta_rev <= theta_switch:
+            y = (y[0], 0.0)                  # exactly at rest: the next piece starts one way
         p = sys.advance_memory(p, y[0])
         t += theta * remaining
         remaining -= theta * remaining
-        slack = not slack
-        res.events.append((t, "slack_entry" if slack else "slack_exit"))
+        if theta_switch < theta_rev:
+            slack = not slack
+            res.events.append((t, "slack_entry" if slack else "slack_exit"))
     return y, p, slack
 
 
@@ -168,9 +195,15 @@ def _switch_fraction(sys: _System, t: float, y: tuple, h: float, slack: bool, p:
     """Fraction of the substep where the tension candidate crosses zero (0 if it starts beyond)."""
     def g(theta: float) -> float:
         yy = sys.rk4(t, y, theta * h, slack, p) if theta > 0.0 else y
-        return sys.tension(yy[0], yy[1], yy[2], p)
+        return sys.tension(yy[0], yy[1], p)
 
     g0 = g(0.0)
     if _wants_switch(slack, g0) or g0 == 0.0:
         return 0.0
-    return brentq(g, 0.0, 1.0, xtol=1e-14, rtol=4 * np.finfo(float).eps, maxiter=200)
+    return brentq(g, 0.0, 1.0, xtol=THETA_TOL, rtol=4 * np.finfo(float).eps, maxiter=200)
+
+
+def _reversal_fraction(sys: _System, t: float, y: tuple, h: float, slack: bool, p: list) -> float:
+    """Fraction of the substep where the velocity changes sign."""
+    return brentq(lambda theta: sys.rk4(t, y, theta * h, slack, p)[1] if theta > 0.0 else y[1],
+                  0.0, 1.0, xtol=THETA_TOL, rtol=4 * np.finfo(float).eps, maxiter=200)
