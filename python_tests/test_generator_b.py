@@ -350,6 +350,8 @@ def _short(spec: dict) -> dict:
 
 
 def test_written_traces_follow_the_format_and_carry_the_truth(tmp_path):
+    from tether.traces import read_trace as product_read_trace
+
     specs = {}
     for s in suite(48, seed=5):
         if s["laws"]["hysteresis"] != "pi_stop" or s["experiment"] != "forced":   # the slowest to calibrate
@@ -360,6 +362,8 @@ def test_written_traces_follow_the_format_and_carry_the_truth(tmp_path):
         columns, meta = generate(spec)
         stem = write_trace(tmp_path, spec["name"], columns, meta)
         back, meta2 = read_trace(stem)
+        product = product_read_trace(stem)          # the product's own reader takes it as it is
+        assert product.experiment == spec["experiment"] and product.n == len(back["time"])
         assert meta2["format"] == "tether-trace/1" and meta2["experiment"] == spec["experiment"]
         assert np.all(np.diff(back["time"]) > 0)
         hidden = meta2["hidden"]

@@ -56,8 +56,7 @@ def generate(spec: dict) -> tuple[dict, dict]:
 def _metadata(spec: dict, extra: dict, diagnostics: dict) -> dict:
     meta = {"format": "tether-trace/1", "experiment": spec["experiment"], "tether": dict(spec["tether"])}
     meta.update(extra)
-    meta["description"] = (f"generator B, {spec['experiment']} test: synthetic, noise sigma "
-                           f"{spec['noise_sigma']:.3g} m on the measured column")
+    meta["description"] = f"synthetic {spec['experiment']} test (generator B); the truth is under 'hidden'"
     meta["hidden"] = {
         "generator": GENERATOR,
         "effects": sorted(spec["effects"]),
@@ -65,9 +64,11 @@ def _metadata(spec: dict, extra: dict, diagnostics: dict) -> dict:
         "laws": spec["laws"],
         "parameters": spec["params"],
         "input": spec["input"],
+        "record": spec.get("record"),
         "noise_sigma": spec["noise_sigma"],
         "noise_seed": spec["noise_seed"],
         "diagnostics": diagnostics,
+        "suite_seed": spec.get("suite_seed"),
     }
     return meta
 
