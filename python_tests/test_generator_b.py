@@ -411,4 +411,20 @@ def test_command_line_writes_a_suite_and_refuses_a_full_directory(tmp_path, caps
     assert names == sorted(s["name"] for s in specs)
     with pytest.raises(SystemExit):
         cli.main(["--n", "2", "--seed", "1", "--out", str(out)])
-    assert "not empty" in capsys.readouterr().err
+    assert "not an empty directory" in capsys.readouterr().err
+
+
+def test_command_line_leaves_nothing_when_a_trace_fails(tmp_path, monkeypatch):
+    calls = []
+
+    def failing(spec):
+        calls.append(spec["name"])
+        if len(calls) == 2:
+            raise GenerationError(f"{spec['name']}: refused for the test")
+        return generate(_short(spec))
+
+    monkeypatch.setattr(cli, "generate", failing)
+    out = tmp_path / "draw"
+    with pytest.raises(GenerationError):
+        cli.main(["--n", "4", "--seed", "9", "--out", str(out)])
+    assert len(calls) == 2 and not out.exists() and not list(tmp_path.iterdir())

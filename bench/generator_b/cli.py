@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -44,9 +45,19 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.n < 1:
         ap.error(f"--n must be at least 1, got {args.n}")
-    if args.out.exists() and any(args.out.iterdir()):
-        ap.error(f"--out {args.out} exists and is not empty; choose a new directory")
+    if args.out.exists() and (not args.out.is_dir() or any(args.out.iterdir())):
+        ap.error(f"--out {args.out} exists and is not an empty directory; choose a new one")
+    partial = args.out.with_name(args.out.name + ".part")
+    if partial.exists():
+        ap.error(f"{partial} is left from an interrupted run; remove it first")
     start = time.perf_counter()
-    write_suite(suite(args.n, args.seed), args.out)
+    try:
+        write_suite(suite(args.n, args.seed), partial)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)     # all the traces or none
+        raise
+    if args.out.exists():
+        args.out.rmdir()
+    partial.rename(args.out)
     print(f"wrote {args.n} traces (seed {args.seed}) to {args.out} in {time.perf_counter() - start:.1f} s")
     return 0
