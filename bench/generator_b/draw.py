@@ -102,7 +102,8 @@ def _draw_dynamic(rng, spec: dict) -> None:
     else:
         amplitude = min(_u(rng, 0.35, 0.7) * u_lin, 0.2)
         strain_span = 2 * amplitude / L
-    spec["params"]["elastic"] = _dynamic_elastic(rng, laws["elastic"], EA_b, m * G, strain_span, eps_lin)
+    forced = spec["experiment"] == "forced"
+    spec["params"]["elastic"] = _dynamic_elastic(rng, laws["elastic"], EA_b, m * G, strain_span, eps_lin, forced)
     elastic = LAWS[laws["elastic"]](**spec["params"]["elastic"])
     u_b = L * elastic_strain_for(elastic, m * G)
     if laws["slack"]:
@@ -110,21 +111,24 @@ def _draw_dynamic(rng, spec: dict) -> None:
     k = EA_b / L
     omega = math.sqrt(k / m)
     _draw_dynamic_input(rng, spec, amplitude, omega)
-    spec["params"]["damping"] = _dynamic_damping(rng, laws["damping"], m, omega, k, amplitude,
+    spec["params"]["damping"] = _dynamic_damping(rng, laws["damping"], m, omega, k, amplitude, forced,
                                                  light=bool(laws["hysteresis"] or laws["damping"] != "viscous"))
     if laws["hysteresis"]:
         spec["params"]["hysteresis"] = _dynamic_hysteresis(rng, laws["hysteresis"], k, L, amplitude, EA_b)
     spec["noise_sigma"] = min(_log_u(rng, 3e-5, 2e-4), amplitude / 300.0)
 
 
-def _dynamic_elastic(rng, name: str, EA_b: float, weight: float, strain_span, eps_lin: float) -> dict:
+def _dynamic_elastic(rng, name: str, EA_b: float, weight: float, strain_span, eps_lin: float,
+                     forced: bool) -> dict:
     """Elastic law whose tangent near balance is about EA_b and whose nonlinearity shows across
-    the strains the motion visits (strain_span; None for a slack record, which spans 0..2 eps)."""
+    the strains the motion visits (strain_span; None for a slack record, which spans 0..2 eps).
+    A forced record reaches its largest strains only at its peaks, so it gets a stronger law."""
     if name == "linear":
         return {"EA": EA_b}
     span = strain_span if strain_span is not None else 2.0 * eps_lin
     if name == "exponential":
-        eps_c = max(span / math.log(_u(rng, 1.4, 2.2)), 1.3 * weight / EA_b)
+        ratio = _u(rng, 1.8, 3.0) if forced else _u(rng, 1.4, 2.2)
+        eps_c = max(span / math.log(ratio), 1.3 * weight / EA_b)
         return {"EA0": EA_b - weight / eps_c, "eps_c": eps_c}
     ratio = _u(rng, 0.25, 0.55)
     if strain_span is None:
@@ -134,7 +138,8 @@ def _dynamic_elastic(rng, name: str, EA_b: float, weight: float, strain_span, ep
     return {"k_toe": ratio * EA_b, "EA": EA_b, "eps_t": eps_t, "width": _u(rng, 0.1, 0.25) * eps_t}
 
 
-def _dynamic_damping(rng, name: str, m: float, omega: float, k: float, amplitude: float, light: bool) -> dict:
+def _dynamic_damping(rng, name: str, m: float, omega: float, k: float, amplitude: float, forced: bool,
+                     light: bool) -> dict:
     critical = 2.0 * m * omega
     c0 = (_u(rng, 0.002, 0.006) if light else _u(rng, 0.004, 0.02)) * critical
     if name == "viscous":
@@ -142,7 +147,11 @@ def _dynamic_damping(rng, name: str, m: float, omega: float, k: float, amplitude
     if name == "coulomb_viscous":
         return {"c0": c0, "F_c": _u(rng, 0.004, 0.01) * math.pi * k * amplitude / 2,
                 "v_s": _u(rng, 0.02, 0.06) * omega * amplitude}
-    return {"c0": c0, "c1": _u(rng, 0.02, 0.05) * critical, "A_d": _u(rng, 0.2, 0.5) * amplitude,
+    # the damping must change over the amplitudes the record visits: a forced record spends most
+    # of its time below its peak, a free one decays through them
+    c1 = _u(rng, 0.04, 0.08) if forced else _u(rng, 0.02, 0.05)
+    A_d = (_u(rng, 0.5, 1.2) if forced else _u(rng, 0.25, 0.6)) * amplitude
+    return {"c0": c0, "c1": c1 * critical, "A_d": A_d,
             "omega": omega}
 
 
