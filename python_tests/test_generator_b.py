@@ -407,7 +407,8 @@ def test_command_line_writes_a_suite_and_refuses_a_full_directory(tmp_path, caps
     out = tmp_path / "draw"
     specs = [_short(s) for s in suite(6, seed=9) if s["experiment"] != "forced"]
     cli.write_suite(specs, out, progress=None)
-    names = sorted(p.stem for p in out.glob("*.json") if p.stem != "suite")
+    names = sorted(p.stem for p in out.glob("*.json"))
+    assert json.loads((out / "suite.manifest").read_text())["traces"] == [s["name"] for s in specs]
     assert names == sorted(s["name"] for s in specs)
     with pytest.raises(SystemExit):
         cli.main(["--n", "2", "--seed", "1", "--out", str(out)])

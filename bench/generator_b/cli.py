@@ -32,7 +32,8 @@ def write_suite(specs: list[dict], out: Path, progress=sys.stderr) -> list[Path]
     manifest = {"generator": "generator_b/1", "suite_seed": specs[0].get("suite_seed") if specs else None,
                 "traces": [s["name"] for s in specs],
                 "seconds": round(time.perf_counter() - start, 1)}
-    (out / "suite.json").write_text(json.dumps(manifest, indent=1) + "\n")
+    # not *.json: a runner that globs the traces must not take the manifest for one
+    (out / "suite.manifest").write_text(json.dumps(manifest, indent=1) + "\n")
     return stems
 
 
