@@ -74,7 +74,7 @@ def test_forced_nonlinear_payload_matches_a_second_integrator():
 def test_toe_tether_with_dahl_friction_matches_a_second_integrator():
     L, m = 14.0, 4.0
     elastic = ToeLinearElastic(k_toe=900.0, EA=3500.0, eps_t=0.009, width=0.0015)
-    law = DahlHysteresis(k=30000.0, F_sat=0.8)
+    law = DahlHysteresis(k=30000.0, F_sat=0.8, asym=-0.3)
     model = payload(elastic, ViscousDamping(0.2), law, L=L, m=m)
     t = np.arange(0, 6.0, 1 / 200)
 
@@ -175,10 +175,12 @@ def test_taut_record_never_clamps_without_slack_hidden():
 # hysteresis
 
 
-def test_dahl_rate_law_loop_reaches_its_steady_state_closed_form():
-    """Strain driven as A sin(w t): after a few cycles z at the turning point is F tanh(k A / F),
-    and the rising branch from -A is F - (F + zA) exp(-k (eps + A) / F)."""
-    law = DahlHysteresis(k=4000.0, F_sat=2.0)
+@pytest.mark.parametrize("asym", [0.0, 0.35])
+def test_dahl_rate_law_loop_reaches_its_steady_state_closed_form(asym):
+    """Strain driven as A sin(w t): after a few cycles z at the turning point is the steady loop's
+    (F tanh(k A / F) when symmetric), and the rising branch from -A is
+    F_up - (F_up - z_low) exp(-k (eps + A) / F_up)."""
+    law = DahlHysteresis(k=4000.0, F_sat=2.0, asym=asym)
     A, w = 1.2e-3, 2 * np.pi
 
     def rhs(t, z):
@@ -186,13 +188,16 @@ def test_dahl_rate_law_loop_reaches_its_steady_state_closed_form():
 
     t = np.linspace(0, 8.0, 8001)
     z = solve_ivp(rhs, (0, 8.0), [0.0], t_eval=t, rtol=1e-11, atol=1e-13, max_step=1e-3).y[0]
-    zA = law.steady_loop_peak(A)
-    assert z[np.argmin(np.abs(t - 7.25))] == pytest.approx(zA, rel=1e-6)
+    z_top = law.steady_loop_peak(A)
+    if asym == 0.0:
+        assert z_top == pytest.approx(law.F_sat * math.tanh(law.k * A / law.F_sat), rel=1e-12)
+    assert z[np.argmin(np.abs(t - 7.25))] == pytest.approx(z_top, rel=1e-6)
+    z_low = z[np.argmin(np.abs(t - 6.75))]
     rising = (t >= 6.75) & (t <= 7.25)
     eps = A * np.sin(w * t[rising])
-    branch = law.F_sat - (law.F_sat + zA) * np.exp(-law.k * (eps + A) / law.F_sat)
+    branch = law.F_up - (law.F_up - z_low) * np.exp(-law.k * (eps + A) / law.F_up)
     assert np.max(np.abs(z[rising] - branch)) < 1e-6 * law.F_sat
-    assert law.branch(-zA, 2 * A) == pytest.approx(zA, rel=1e-12)
+    assert law.branch(z_low, 2 * A) == pytest.approx(z_top, rel=1e-6)
 
 
 def test_stop_bank_virgin_curve_masing_branch_and_dissipation():

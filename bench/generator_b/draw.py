@@ -158,7 +158,8 @@ def _dynamic_damping(rng, name: str, m: float, omega: float, k: float, amplitude
 def _dynamic_hysteresis(rng, name: str, k: float, L: float, amplitude: float, EA_b: float) -> dict:
     if name == "dahl":
         F_sat = _u(rng, 0.006, 0.015) * math.pi * k * amplitude / 2
-        return {"k": F_sat * L / (_u(rng, 0.15, 0.5) * amplitude), "F_sat": F_sat}
+        return {"k": F_sat * L / (_u(rng, 0.15, 0.5) * amplitude), "F_sat": F_sat,
+                "asym": _u(rng, -0.4, 0.4)}
     return {"stiffness": _u(rng, 0.06, 0.2) * EA_b, "r_max": _u(rng, 0.3, 1.0) * amplitude / L,
             "alpha": _u(rng, 0.5, 2.5), "count": int(rng.integers(12, 25))}
 
@@ -222,7 +223,7 @@ def _load_elastic(rng, name: str, EA: float, F1: float, eps_max: float) -> dict:
 def _load_hysteresis(rng, name: str, EA: float, F1: float, eps_max: float) -> dict:
     if name == "dahl":
         F_sat = _u(rng, 0.03, 0.08) * F1
-        return {"k": F_sat / (_u(rng, 0.1, 0.3) * eps_max), "F_sat": F_sat}
+        return {"k": F_sat / (_u(rng, 0.1, 0.3) * eps_max), "F_sat": F_sat, "asym": _u(rng, -0.4, 0.4)}
     return {"stiffness": _u(rng, 0.1, 0.3) * EA, "r_max": _u(rng, 0.1, 0.4) * eps_max,
             "alpha": _u(rng, 0.5, 2.5), "count": int(rng.integers(12, 25))}
 

@@ -135,26 +135,41 @@ class AmplitudeDamping:
 
 @dataclass
 class DahlHysteresis:
-    """Dahl's friction model in strain: dz/deps = k (1 - z sgn(deps) / F_sat), z -> +-F_sat.
+    """Dahl's friction model in strain, asymmetric (the paper's Kevlar loops are): the force
+    saturates at F_up = F_sat (1 + asym) while the strain grows and at -F_down = -F_sat (1 - asym)
+    while it falls; dz/deps = k (1 - z / F_up) rising, k (1 + z / F_down) falling.
 
-    As a rate law dz/dt = k (epsdot - z |epsdot| / F_sat). `branch` is its exact solution along a
-    monotone strain change, used by the quasi-static solver."""
+    As a rate law dz/dt = k (epsdot - z |epsdot| / F), F the saturation of the direction of
+    motion. `branch` is its exact solution along a monotone strain change."""
     k: float
     F_sat: float
+    asym: float = 0.0
     name: str = "dahl"
 
+    @property
+    def F_up(self) -> float:
+        return self.F_sat * (1.0 + self.asym)
+
+    @property
+    def F_down(self) -> float:
+        return self.F_sat * (1.0 - self.asym)
+
     def rate(self, z: float, eps_rate: float) -> float:
-        return self.k * (eps_rate - z * abs(eps_rate) / self.F_sat)
+        F = self.F_up if eps_rate > 0.0 else self.F_down
+        return self.k * (eps_rate - z * abs(eps_rate) / F)
 
     def branch(self, z0: float, d_eps: float) -> float:
-        if d_eps == 0.0:
-            return z0
-        s = 1.0 if d_eps > 0.0 else -1.0
-        return s * self.F_sat - (s * self.F_sat - z0) * math.exp(-self.k * abs(d_eps) / self.F_sat)
+        if d_eps > 0.0:
+            return self.F_up - (self.F_up - z0) * math.exp(-self.k * d_eps / self.F_up)
+        if d_eps < 0.0:
+            return -self.F_down + (z0 + self.F_down) * math.exp(self.k * d_eps / self.F_down)
+        return z0
 
     def steady_loop_peak(self, amplitude: float) -> float:
-        """z at the turning point of a symmetric strain cycle +-amplitude, once the loop is steady."""
-        return self.F_sat * math.tanh(self.k * amplitude / self.F_sat)
+        """z at the top of a steady loop over strains +-amplitude (tanh(k A / F) F if symmetric)."""
+        e_up = math.exp(-2 * self.k * amplitude / self.F_up)
+        e_down = math.exp(-2 * self.k * amplitude / self.F_down)
+        return (self.F_up * (1 - e_up) - e_up * self.F_down * (1 - e_down)) / (1 - e_up * e_down)
 
 
 @dataclass
