@@ -14,6 +14,11 @@ damping, Findley/log creep with Norton-Bailey slip), runs one discovery per trac
   discovered model run by the FMU on test_multisine.
 
     python bench/discovery_eval.py [--n 48] [--seed 0] [--jobs 2] [--out DIR] [--boucwen] [--family fmu]
+    python bench/discovery_eval.py --traces DIR [--jobs 2] [--out DIR2]
+
+--traces DIR runs every trace of a folder drawn by another generator (bench/generator_b:
+`python -m bench.generator_b --n 48 --seed S --out DIR`); the truth is read from each JSON's
+`hidden` key by the scoring only (discovery's reader ignores unknown keys).
 
 --family fmu keeps each record's tether, input, sampling and noise but simulates the measured
 column with the FMU and the paper's laws (the effects hidden stay the same): discovery against
@@ -47,6 +52,8 @@ def _one(job):
     dest = Path(outdir) / f"{name}.result.json"
     if dest.is_file():
         return json.loads(dest.read_text())
+    if "_file" in kw:
+        return _one_file(name, Path(kw["_file"]), dest)
     import hidden_effects as he
     from tether import discover as D
     from tether.traces import read_trace
@@ -74,6 +81,32 @@ def _one(job):
         row = {"name": name, "experiment": trace.experiment, "hidden": sorted(tr.revealed), "named": None,
                "error": f"{type(e).__name__}: {e}", "seconds": time.perf_counter() - t0,
                "noise_true": tr.meta["hidden"]["noise_sigma_m"], "samples": len(trace.time)}
+    tmp = dest.with_suffix(".tmp")
+    tmp.write_text(json.dumps(row, indent=1))
+    os.replace(tmp, dest)
+    return row
+
+
+def _one_file(name, stem: Path, dest: Path) -> dict:
+    """Discover one trace drawn by another generator; the truth comes from its JSON's `hidden` key."""
+    from tether import discover as D
+    from tether.traces import read_trace
+
+    D.ENGINE_OPTIONS["n_threads"] = 1
+    D.PARALLEL_FITS = 1
+    hidden = json.loads(stem.with_suffix(".json").read_text())["hidden"]
+    trace = read_trace(stem)
+    base = {"name": name, "experiment": trace.experiment, "hidden": sorted(hidden["effects"]),
+            "noise_true": float(hidden["noise_sigma"]), "samples": len(trace.time)}
+    t0 = time.perf_counter()
+    try:
+        doc = D.discovery_document(D.discover(trace))
+        row = {**base, "named": doc["added_effects"], "final_model": doc["final_model"],
+               "rmse_initial": doc["rmse_initial"], "rmse_final": doc["rmse_final"],
+               "noise_estimate": doc["noise_estimate"], "removed": [r["effect"] for r in doc["removed"]]}
+    except Exception as e:  # noqa: BLE001 - a failure is a result of the evaluation
+        row = {**base, "named": None, "error": f"{type(e).__name__}: {e}"}
+    row["seconds"] = time.perf_counter() - t0
     tmp = dest.with_suffix(".tmp")
     tmp.write_text(json.dumps(row, indent=1))
     os.replace(tmp, dest)
@@ -162,16 +195,22 @@ def main(argv=None) -> int:
     ap.add_argument("--family", choices=("independent", "fmu"), default="independent",
                     help="the generator's own laws (default), or the same records with the measured column "
                          "simulated by the FMU with the paper's laws")
+    ap.add_argument("--traces", default=None, metavar="DIR",
+                    help="run the traces of a folder drawn by another generator (truth in each JSON's 'hidden')")
     a = ap.parse_args(argv)
     import hidden_effects as he
 
-    outdir = Path(a.out or f"/tmp/discovery_eval_{a.n}_{a.seed}")
+    outdir = Path(a.out or (f"/tmp/discovery_eval_{Path(a.traces).name}" if a.traces
+                            else f"/tmp/discovery_eval_{a.n}_{a.seed}"))
     outdir.mkdir(parents=True, exist_ok=True)
-    specs = he.suite_specs(a.n, a.seed)
+    if a.traces:
+        specs = [(p.stem, {"_file": str(p.with_suffix(""))}) for p in sorted(Path(a.traces).glob("*.json"))]
+    else:
+        specs = [(name, {**kw, "_family": a.family}) for name, kw in he.suite_specs(a.n, a.seed)]
     if a.only:
         keys = a.only.split(",")
         specs = [s for s in specs if any(k in s[0] for k in keys)]
-    jobs = [(name, {**kw, "_family": a.family}, str(outdir)) for name, kw in specs]
+    jobs = [(name, kw, str(outdir)) for name, kw in specs]
     t0 = time.perf_counter()
     rows = []
     if a.jobs > 1:
