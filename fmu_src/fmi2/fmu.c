@@ -617,7 +617,7 @@ static int snapshot_valid(const snapshot *s)
 
 static int one_of_run_states(int state, int states)
 {
-    return state != 0 && (state & (state - 1)) == 0 && (state & states) != 0;
+    return state > 0 && (state & (state - 1)) == 0 && (state & states) != 0;
 }
 
 /* Everything a restored state holds, checked before any of it reaches the instance: the header,
