@@ -15,9 +15,12 @@
 
 #define N_STATES TETHER_NUMBER_OF_STATES
 #define N_EVENTS TETHER_NUMBER_OF_EVENT_INDICATORS
-/* a step that needs more events than this is a Zeno run (chattering) */
-#define MAX_EVENTS_PER_ADVANCE 100000L
-/* steps CVODE may take within one advance before it gives up (a stuck or runaway run) */
+/* One advance (one communication step) has a bounded cost, whatever the model does: at most this
+ * many events (a run that needs more is chattering; a storm of this many costs well under a second,
+ * docs/robustness.md) ... */
+#define MAX_EVENTS_PER_ADVANCE 5000L
+/* ... and at most this many CVODE steps in all, across the restarts at events (a stuck, runaway or
+ * chattering run) */
 #define INTEGRATOR_MAX_STEPS 200000L
 
 struct tether_integrator {
@@ -132,12 +135,26 @@ int integrator_reset(tether_integrator *I, double t, const double *y)
 
 int integrator_advance(tether_integrator *I, double t_end, double *t_reached, double *y)
 {
-    long events = 0;
+    long events = 0, steps = 0;
     I->error[0] = '\0';
     while (I->t < t_end) {
+        if (steps >= INTEGRATOR_MAX_STEPS) {
+            snprintf(I->error, sizeof I->error, "%ld solver steps and %ld events within one step, stopped at "
+                     "t = %.17g s before t = %.17g s (a stuck, runaway or chattering run)", steps, events, I->t, t_end);
+            break;
+        }
         realtype tret = I->t;
         CVodeSetStopTime(I->cvode, t_end);
+        long before = 0, after = 0;
+        CVodeGetNumSteps(I->cvode, &before);
+        CVodeSetMaxNumSteps(I->cvode, INTEGRATOR_MAX_STEPS - steps); /* what is left of the budget, >= 1 */
         const int flag = CVode(I->cvode, t_end, I->y, &tret, CV_NORMAL);
+        CVodeGetNumSteps(I->cvode, &after);
+        steps += after - before;
+        if (flag == CV_TOO_MUCH_WORK && !I->error[0]) { /* keep a more specific reason (a runaway) */
+            snprintf(I->error, sizeof I->error, "%ld solver steps and %ld events within one step, stopped at "
+                     "t = %.17g s before t = %.17g s (a stuck, runaway or chattering run)", steps, events, (double)tret, t_end);
+        }
         if (flag == CV_ROOT_RETURN) {
             I->t = tret;
             char note[1024];
@@ -146,8 +163,8 @@ int integrator_advance(tether_integrator *I, double t_end, double *t_reached, do
                 if (I->log) I->log(I->log_ctx, note);
                 I->events += switches;
                 if (++events > MAX_EVENTS_PER_ADVANCE) {
-                    snprintf(I->error, sizeof I->error, "more than %ld events before t = %.17g s (chattering)",
-                             MAX_EVENTS_PER_ADVANCE, t_end);
+                    snprintf(I->error, sizeof I->error, "more than %ld events within one step, stopped at t = %.17g s "
+                             "before t = %.17g s (chattering)", MAX_EVENTS_PER_ADVANCE, (double)tret, t_end);
                     break;
                 }
                 if (CVodeReInit(I->cvode, tret, I->y) != CV_SUCCESS) break;
