@@ -661,10 +661,9 @@ static int snapshot_check(const snapshot *s, char *msg, size_t len)
         FINITE(M->in.load_der[k], what);
     }
     FINITE(M->in.t_ref, "input reference time");
-    for (int i = 0; i < N_STATES; ++i) {
-        snprintf(what, sizeof what, "state %d", i);
-        FINITE(s->y[i], what);
-    }
+#define STATE_NAME(index, state, derivative) #state,
+    static const char *const state_names[N_STATES] = {KT_STATES(STATE_NAME)};
+    for (int i = 0; i < N_STATES; ++i) FINITE(s->y[i], state_names[i]);
     FINITE(s->time, "time");
     FINITE(s->last_successful_time, "last successful time");
     FINITE(s->start_time, "start time");
