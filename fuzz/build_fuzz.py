@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
 """build_fuzz.py -- build the fuzz and thread drivers from the FMU's own sources/.
 
-usage: build_fuzz.py FMU OUTDIR [--sanitize address,undefined | thread] [--driver fmu_fuzz.c]
+usage: build_fuzz.py FMU OUTDIR [--sanitize address,undefined,float-cast-overflow | thread] [--driver fmu_fuzz.c]
 
 Extracts sources/ of FMU, compiles exactly the C files its <SourceFiles> list (sources/ the only
 include directory, as `fmpy compile` does) together with the driver into OUTDIR/<driver name>,
-with the sanitizers asked for (default: AddressSanitizer with LeakSanitizer, and UBSan, which
-aborts on its first report). Rebuilds only when the FMU or the driver changed. Prints the path.
+with the sanitizers asked for (default: AddressSanitizer with LeakSanitizer, and UBSan with the
+float-to-integer overflow check, aborting on the first report). Rebuilds only when the FMU or the driver changed. Prints the path.
 """
 import argparse
 import hashlib
@@ -26,7 +26,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("fmu", type=Path)
     ap.add_argument("outdir", type=Path)
-    ap.add_argument("--sanitize", default="address,undefined")
+    ap.add_argument("--sanitize", default="address,undefined,float-cast-overflow")
     ap.add_argument("--driver", default="fmu_fuzz.c")
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()

@@ -45,7 +45,7 @@ def reports(r: subprocess.CompletedProcess) -> list[str]:
 
 
 def test_fixed_seed_fuzz_campaign_under_asan_ubsan_lsan():
-    exe = build("address,undefined", "fmu_fuzz.c")
+    exe = build("address,undefined,float-cast-overflow", "fmu_fuzz.c")
     r = run(exe, str(FUZZ_SEED), str(FUZZ_SEQUENCES),
             env={"ASAN_OPTIONS": "detect_leaks=1:halt_on_error=1", "UBSAN_OPTIONS": "halt_on_error=1:print_stacktrace=1"})
     print(r.stdout.strip())
