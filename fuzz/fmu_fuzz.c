@@ -393,11 +393,10 @@ static void good_start(slot *s)
     if (s->type == fmi2ModelExchange && chance(50)) fmi2EnterContinuousTimeMode(s->c);
 }
 
-#if defined(__has_include)
-#if __has_include(<sanitizer/common_interface_defs.h>)
+/* the death callback comes with the sanitizer runtimes (ASan, TSan); a plain build goes without */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 #include <sanitizer/common_interface_defs.h>
 #define HAVE_SANITIZER_DEATH_CALLBACK 1
-#endif
 #endif
 
 static void on_death(void)
