@@ -36,8 +36,14 @@ struct tether_integrator {
     integrator_log_fn log;
     void *log_ctx;
     long events, resets;
+    long runaway_refusals; /* rhs calls refused as a runaway within this advance */
     char error[512];
 };
+
+/* After this many refused rhs calls CVODE is stopped: it treats a refused rhs as a failed step
+ * and would otherwise creep towards the runaway boundary in ever smaller steps (up to its whole
+ * step budget, ~1 s) */
+#define RUNAWAY_REFUSALS_TO_STOP 50
 
 double integrator_local_tolerance(double rtol)
 {
@@ -48,7 +54,10 @@ double integrator_local_tolerance(double rtol)
 static int rhs(realtype t, N_Vector y, N_Vector ydot, void *user)
 {
     tether_integrator *I = (tether_integrator *)user;
-    if (tether_runaway(I->M, t, NV_DATA_S(y), I->error, sizeof I->error)) return -1; /* stop now */
+    if (tether_runaway(I->M, t, NV_DATA_S(y), I->error, sizeof I->error)) {
+        I->runaway_refusals += 1;
+        return -1; /* stop now */
+    }
     tether_derivatives(I->M, t, NV_DATA_S(y), NV_DATA_S(ydot));
     for (int i = 0; i < N_STATES; ++i)
         if (!isfinite(NV_Ith_S(ydot, i))) return 1; /* recoverable: CVODE retries a smaller step */
@@ -59,7 +68,7 @@ static int roots(realtype t, N_Vector y, realtype *g, void *user)
 {
     const tether_integrator *I = (const tether_integrator *)user;
     tether_event_indicators(I->M, t, NV_DATA_S(y), g);
-    return 0;
+    return I->runaway_refusals >= RUNAWAY_REFUSALS_TO_STOP ? -1 : 0; /* -1: CVode returns at once */
 }
 
 static void on_cvode_error(int code, const char *module, const char *function, char *msg, void *user)
@@ -137,6 +146,7 @@ int integrator_advance(tether_integrator *I, double t_end, double *t_reached, do
 {
     long events = 0, steps = 0;
     I->error[0] = '\0';
+    I->runaway_refusals = 0;
     while (I->t < t_end) {
         if (steps >= INTEGRATOR_MAX_STEPS) {
             snprintf(I->error, sizeof I->error, "%ld solver steps and %ld events within one step, stopped at "
