@@ -377,3 +377,17 @@ def test_engine_agrees_with_the_fmu_on_the_steady_force_trace():
     assert np.max(np.abs(T_eng - T_fmu)) <= 1e-9 * np.max(np.abs(T_fmu))
     balance = 4.3 * 9.81 + 100.0
     assert np.abs(T_fmu[-200:] - balance).max() < 2e-4 * balance, "not settling at the balance"
+
+
+def test_a_step_that_would_take_for_ever_stops_at_its_step_budget():
+    """A non-stiff solver forced onto the stiff load rig (tracking time 1 ms) asked for 1e5 s in one
+    step would take ~1e8 CVODE steps: the step stops at its budget of 200,000 steps with
+    fmi2Discard, says how many steps and events it took and where it stopped, and
+    fmi2LastSuccessfulTime is that point."""
+    inst = H.cs(dict(rig=3, creep=True, integrator=3, load=60.0), categories=["logStatusDiscard"])
+    assert inst.do_step(0.0, 1e5) == 2
+    st, t_reached = inst.last_successful_time()
+    msg = inst.log.in_category("logStatusDiscard")[-1]
+    inst.free()
+    assert st == fmi2OK and 0.0 < t_reached < 1e5
+    assert "200000 solver steps and 0 events within one step" in msg and f"{t_reached:.17g}" in msg, msg

@@ -161,7 +161,7 @@ int integrator_advance(tether_integrator *I, double t_end, double *t_reached, do
         const int flag = CVode(I->cvode, t_end, I->y, &tret, CV_NORMAL);
         CVodeGetNumSteps(I->cvode, &after);
         steps += after - before;
-        if (flag == CV_TOO_MUCH_WORK && !I->error[0]) { /* keep a more specific reason (a runaway) */
+        if (flag == CV_TOO_MUCH_WORK && I->runaway_refusals == 0) { /* a runaway is the more specific reason */
             snprintf(I->error, sizeof I->error, "%ld solver steps and %ld events within one step, stopped at "
                      "t = %.17g s before t = %.17g s (a stuck, runaway or chattering run)", steps, events, (double)tret, t_end);
         }
