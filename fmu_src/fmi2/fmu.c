@@ -72,6 +72,7 @@ static const char *const log_category_names[N_LOG_CATEGORIES] = {
 /* everything that defines where a simulation stands: plain values, saved and restored by value */
 typedef struct {
     uint32_t magic;
+    uint32_t version;
     uint32_t size;
     char guid[40];
     int fmu_state;
@@ -82,7 +83,11 @@ typedef struct {
     double start_time;
 } snapshot;
 
+/* first field of every instance: a pointer that does not carry it is not one of ours */
+#define INSTANCE_MAGIC 0x4b54494eu /* "KTIN" */
+
 typedef struct {
+    uint32_t magic;
     fmi2Type type;
     char *instance_name;
     fmi2CallbackLogger logger;
@@ -97,6 +102,13 @@ typedef struct {
     int needs_reset;      /* CS: restart CVODE before the next step */
     tether_integrator *integrator;
 } instance;
+
+/* the instance behind an fmi2Component, or NULL if it is NULL or not an instance of this FMU */
+static instance *as_instance(fmi2Component comp)
+{
+    instance *c = (instance *)comp;
+    return (c && c->magic == INSTANCE_MAGIC) ? c : NULL;
+}
 
 static void vlog(instance *c, fmi2Status status, int category, const char *fmt, va_list ap)
 {
@@ -140,7 +152,17 @@ static fmi2Status fail(instance *c, const char *fmt, ...)
     va_start(ap, fmt);
     vlog(c, fmi2Error, LOG_ERROR, fmt, ap);
     va_end(ap);
-    c->state = S_ERROR;
+    if (c && c->state != S_FATAL) c->state = S_ERROR;
+    return fmi2Error;
+}
+
+/* report an error but leave the instance as it was (a refused FMU state changes nothing) */
+static fmi2Status refuse(instance *c, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vlog(c, fmi2Error, LOG_ERROR, fmt, ap);
+    va_end(ap);
     return fmi2Error;
 }
 
@@ -215,7 +237,7 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 fmi2Status fmi2SetDebugLogging(fmi2Component comp, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2SetDebugLogging", S_ANY_BUT_FATAL);
     if (nCategories > 0 && !categories) return fail(c, "fmi2SetDebugLogging: nCategories = %zu but categories is NULL", nCategories);
     int on[N_LOG_CATEGORIES];
@@ -269,6 +291,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     c->instance_name = (char *)malloc(strlen(instanceName) + 1);
     if (!c->instance_name) { free(c); return NULL; }
     strcpy(c->instance_name, instanceName);
+    c->magic = INSTANCE_MAGIC;
     c->type = fmuType;
     c->logger = logger;
     c->env = env;
@@ -281,17 +304,18 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 
 void fmi2FreeInstance(fmi2Component comp)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     if (!c) return;
     integrator_free(c->integrator);
     free(c->instance_name);
+    c->magic = 0; /* a second fmi2FreeInstance of this pointer is then refused, not a double free */
     free(c);
 }
 
 fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2SetupExperiment", S_INSTANTIATED);
     if (!isfinite(startTime)) return fail(c, "fmi2SetupExperiment: startTime = %g s is not finite", startTime);
     if (stopTimeDefined && !(stopTime >= startTime))
@@ -307,7 +331,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean toleranceDefined,
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component comp)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2EnterInitializationMode", S_INSTANTIATED);
     c->state = S_INIT;
     c->initialized = 0;
@@ -316,7 +340,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component comp)
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component comp)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2ExitInitializationMode", S_INIT);
     if (!c->initialized && initialize_model(c, "fmi2ExitInitializationMode") != fmi2OK) return fmi2Error;
     if (c->type == fmi2CoSimulation) {
@@ -334,7 +358,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp)
 
 fmi2Status fmi2Terminate(fmi2Component comp)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2Terminate", S_EVENT | S_CONTINUOUS | S_STEP_COMPLETE | S_STEP_FAILED);
     c->state = S_TERMINATED;
     return fmi2OK;
@@ -342,7 +366,7 @@ fmi2Status fmi2Terminate(fmi2Component comp)
 
 fmi2Status fmi2Reset(fmi2Component comp)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2Reset", S_ANY_BUT_FATAL);
     integrator_free(c->integrator);
     c->integrator = NULL;
@@ -365,7 +389,7 @@ static void compute_outputs(instance *c, tether_outputs *o)
 
 fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2GetReal", S_READABLE);
     if (nvr == 0) return fmi2OK;
     CHECK_NOT_NULL("fmi2GetReal", vr);
@@ -394,7 +418,7 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2GetInteger", S_READABLE);
     if (nvr == 0) return fmi2OK;
     CHECK_NOT_NULL("fmi2GetInteger", vr);
@@ -412,7 +436,7 @@ fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
 
 fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2GetBoolean", S_READABLE);
     if (nvr == 0) return fmi2OK;
     CHECK_NOT_NULL("fmi2GetBoolean", vr);
@@ -436,7 +460,7 @@ fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], siz
 
 fmi2Status fmi2GetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2GetString", S_READABLE);
     (void)value;
     if (nvr == 0) return fmi2OK;
@@ -466,7 +490,7 @@ static const char *kind_name(int kind)
 
 fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2SetReal", S_INSTANTIATED | S_INIT | S_EVENT | S_CONTINUOUS | S_STEP_COMPLETE);
     if (nvr == 0) return fmi2OK;
     CHECK_NOT_NULL("fmi2SetReal", vr);
@@ -502,7 +526,7 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2SetInteger", S_INSTANTIATED | S_INIT | S_EVENT | S_CONTINUOUS | S_STEP_COMPLETE);
     if (nvr == 0) return fmi2OK;
     CHECK_NOT_NULL("fmi2SetInteger", vr);
@@ -530,7 +554,7 @@ fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
 
 fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2SetBoolean", S_INSTANTIATED | S_INIT | S_EVENT | S_CONTINUOUS | S_STEP_COMPLETE);
     if (nvr == 0) return fmi2OK;
     CHECK_NOT_NULL("fmi2SetBoolean", vr);
@@ -556,7 +580,7 @@ fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], siz
 
 fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2SetString", S_INSTANTIATED | S_INIT | S_EVENT | S_CONTINUOUS | S_STEP_COMPLETE);
     (void)value;
     if (nvr == 0) return fmi2OK;
@@ -565,10 +589,15 @@ fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size
 }
 
 /* ---- FMU state, by value ------------------------------------------------------------------- */
+#define SNAPSHOT_VERSION 2u
+/* the run states an instance is in when its state is taken (never instantiated, never fatal) */
+#define S_SAVED (S_INIT | S_EVENT | S_CONTINUOUS | S_STEP_COMPLETE | S_STEP_FAILED | S_TERMINATED | S_ERROR)
+
 static void take_snapshot(const instance *c, snapshot *s)
 {
     memset(s, 0, sizeof *s);
     s->magic = SNAPSHOT_MAGIC;
+    s->version = SNAPSHOT_VERSION;
     s->size = (uint32_t)sizeof *s;
     strncpy(s->guid, KT_MODEL_GUID, sizeof s->guid - 1);
     s->fmu_state = c->state;
@@ -579,9 +608,91 @@ static void take_snapshot(const instance *c, snapshot *s)
     s->start_time = c->start_time;
 }
 
+/* the header: magic number, version, size and GUID */
 static int snapshot_valid(const snapshot *s)
 {
-    return s->magic == SNAPSHOT_MAGIC && s->size == sizeof *s && strncmp(s->guid, KT_MODEL_GUID, sizeof s->guid) == 0;
+    return s->magic == SNAPSHOT_MAGIC && s->version == SNAPSHOT_VERSION && s->size == sizeof *s &&
+           memcmp(s->guid, KT_MODEL_GUID, sizeof KT_MODEL_GUID) == 0;
+}
+
+static int one_of_run_states(int state, int states)
+{
+    return state > 0 && (state & (state - 1)) == 0 && (state & states) != 0;
+}
+
+/* Everything a restored state holds, checked before any of it reaches the instance: the header,
+ * the run state, every parameter and input finite and inside its declared range, every switch a
+ * legal value, every state and time finite, the discrete memory consistent, and the parameters
+ * passing the physics' own checks. Writes the field at fault and its value into msg. */
+static int snapshot_check(const snapshot *s, char *msg, size_t len)
+{
+#define BAD(...) do { snprintf(msg, len, __VA_ARGS__); return -1; } while (0)
+#define FINITE(value, what) do { if (!isfinite(value)) BAD("%s = %g is not finite", what, (double)(value)); } while (0)
+    if (s->magic != SNAPSHOT_MAGIC) BAD("magic = 0x%08x, expected 0x%08x (not a KevlarTether state)", (unsigned)s->magic, SNAPSHOT_MAGIC);
+    if (s->version != SNAPSHOT_VERSION) BAD("version = %u, this FMU reads version %u", (unsigned)s->version, SNAPSHOT_VERSION);
+    if (s->size != sizeof *s) BAD("size = %u, expected %zu", (unsigned)s->size, sizeof *s);
+    if (memcmp(s->guid, KT_MODEL_GUID, sizeof KT_MODEL_GUID) != 0) BAD("the GUID is not this FMU's %s", KT_MODEL_GUID);
+    if (!one_of_run_states(s->fmu_state, S_SAVED))
+        BAD("run state = %d is not one a saved instance may be in (initialization, event, continuous-time, "
+            "step complete, step failed, terminated or error)", s->fmu_state);
+    const tether_model *M = &s->model;
+#define CHECK_REAL(vr, id, name, kind, var, hs, st, lo, hi) CHECK_REAL_##kind(id, name, lo, hi)
+#define CHECK_REAL_RANGE(value, name, lo, hi)                                                      \
+    if (!isfinite(value) || (value) < (lo) || (value) > (hi))                                      \
+        BAD("%s = %.17g is outside its range [%g, %g]", name, (double)(value), (double)(lo), (double)(hi));
+#define CHECK_REAL_KT_PARAM(id, name, lo, hi) CHECK_REAL_RANGE(M->p.id, name, lo, hi)
+#define CHECK_REAL_KT_INPUT(id, name, lo, hi) CHECK_REAL_RANGE(M->in.id, name, lo, hi)
+#define CHECK_REAL_KT_CALC(id, name, lo, hi)
+#define CHECK_REAL_KT_OUTPUT(id, name, lo, hi)
+#define CHECK_REAL_KT_LOCAL(id, name, lo, hi)
+    KT_REAL_VARIABLES(CHECK_REAL)
+#define CHECK_INT(vr, id, name, kind, var, st, lo, hi)                                             \
+    if (M->p.id < (lo) || M->p.id > (hi)) BAD("%s = %d is not one of its values %d..%d", name, M->p.id, lo, hi);
+    KT_INTEGER_VARIABLES(CHECK_INT)
+#define CHECK_BOOL(vr, id, name, kind, var, st) CHECK_BOOL_##kind(id, name)
+#define CHECK_BOOL_KT_PARAM(id, name) if (M->p.id != 0 && M->p.id != 1) BAD("%s = %d is not a Boolean (0 or 1)", name, M->p.id);
+#define CHECK_BOOL_KT_LOCAL(id, name)
+    KT_BOOLEAN_VARIABLES(CHECK_BOOL)
+    char what[64];
+    for (int k = 0; k < TETHER_INPUT_DERIVATIVE_ORDER; ++k) {
+        snprintf(what, sizeof what, "d%d(force)/dt%d", k + 1, k + 1);
+        FINITE(M->in.force_der[k], what);
+        snprintf(what, sizeof what, "d%d(load)/dt%d", k + 1, k + 1);
+        FINITE(M->in.load_der[k], what);
+    }
+    FINITE(M->in.t_ref, "input reference time");
+#define STATE_NAME(index, state, derivative) #state,
+    static const char *const state_names[N_STATES] = {KT_STATES(STATE_NAME)};
+    for (int i = 0; i < N_STATES; ++i) FINITE(s->y[i], state_names[i]);
+    FINITE(s->time, "time");
+    FINITE(s->last_successful_time, "last successful time");
+    FINITE(s->start_time, "start time");
+    const tether_discrete *d = &M->d;
+    if (d->taut != 0 && d->taut != 1) BAD("taut = %d is not 0 or 1", d->taut);
+    if (d->warned_rising_limit != 0 && d->warned_rising_limit != 1) BAD("warned_rising_limit = %d is not 0 or 1", d->warned_rising_limit);
+    FINITE(d->balance_elongation, "balance elongation");
+    if (isnan(d->rising_limit) || isnan(d->compression_limit)) BAD("the elastic law's rising range is NaN");
+    const kawabata_memory *k = &d->kawabata;
+    if (k->n < 0 || k->n > KAWABATA_MAX_REVERSALS) BAD("Kawabata reversal count = %d, expected 0..%d", k->n, KAWABATA_MAX_REVERSALS);
+    if (k->direction != 1 && k->direction != -1) BAD("Kawabata direction = %d, expected +1 or -1", k->direction);
+    for (int i = 0; i < k->n; ++i) {
+        snprintf(what, sizeof what, "Kawabata turning point %d strain", i + 1);
+        FINITE(k->eps[i], what);
+        snprintf(what, sizeof what, "Kawabata turning point %d tension", i + 1);
+        FINITE(k->F[i], what);
+    }
+    const iwan_memory *w = &d->iwan;
+    if (w->direction != 1 && w->direction != -1) BAD("Iwan direction = %d, expected +1 or -1", w->direction);
+    FINITE(w->eps_ref, "Iwan reference strain");
+    for (int i = 0; i < IWAN_ELEMENTS; ++i) {
+        snprintf(what, sizeof what, "Iwan element %d spring strain", i + 1);
+        FINITE(w->q[i], what);
+    }
+    /* past initialisation the parameters have passed the physics' checks; they must again */
+    if (s->fmu_state != S_INIT && tether_check(M, msg, len) != 0) return -1;
+#undef FINITE
+#undef BAD
+    return 0;
 }
 
 /* CVODE is set up from the structural parameters; after a restore it is rebuilt from the
@@ -595,8 +706,8 @@ static void drop_integrator(instance *c)
 
 fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *FMUstate)
 {
-    instance *c = (instance *)comp;
-    CHECK_STATE("fmi2GetFMUstate", S_ANY_BUT_FATAL & ~S_INSTANTIATED);
+    instance *c = as_instance(comp);
+    CHECK_STATE("fmi2GetFMUstate", S_SAVED);
     CHECK_NOT_NULL("fmi2GetFMUstate", FMUstate);
     snapshot *s = (snapshot *)*FMUstate;
     if (!s) {
@@ -613,31 +724,41 @@ fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *FMUstate)
 
 fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate FMUstate)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2SetFMUstate", S_ANY_BUT_FATAL);
     CHECK_NOT_NULL("fmi2SetFMUstate", FMUstate);
-    const snapshot *s = (const snapshot *)FMUstate;
-    if (!snapshot_valid(s)) return fail(c, "fmi2SetFMUstate: FMUstate is not a state of this FMU");
-    c->model = s->model;
-    memcpy(c->y, s->y, sizeof c->y);
-    c->time = s->time;
-    c->last_successful_time = s->last_successful_time;
-    c->start_time = s->start_time;
-    c->initialized = 1;
-    c->state = s->fmu_state;
+    /* check a scratch copy; the instance is touched only once all of it is good */
+    snapshot s;
+    memcpy(&s, FMUstate, sizeof s);
+    char msg[512];
+    if (snapshot_check(&s, msg, sizeof msg) != 0) return refuse(c, "fmi2SetFMUstate: FMUstate is not a state this FMU may restore: %s", msg);
+    int state = s.fmu_state;
     if (c->type == fmi2CoSimulation) {
-        if (c->state & (S_INSTANTIATED | S_INIT | S_EVENT | S_CONTINUOUS)) c->state = S_STEP_COMPLETE;
-        drop_integrator(c);
-    } else if (c->state & (S_INSTANTIATED | S_STEP_COMPLETE | S_STEP_FAILED)) {
-        c->state = S_EVENT;
+        if (state & (S_INIT | S_EVENT | S_CONTINUOUS)) state = S_STEP_COMPLETE;
+    } else if (state & (S_STEP_COMPLETE | S_STEP_FAILED)) {
+        state = S_EVENT;
     }
+    c->model = s.model;
+    if (state != S_INIT) {
+        /* derived from the parameters: recomputed, not taken from the bytes */
+        c->model.d.rising_limit = elastic_rising_limit(&c->model.p);
+        c->model.d.compression_limit = elastic_compression_limit(&c->model.p);
+    }
+    memcpy(c->y, s.y, sizeof c->y);
+    c->time = s.time;
+    c->last_successful_time = s.last_successful_time;
+    c->start_time = s.start_time;
+    c->initialized = state != S_INIT; /* in initialization mode, initialise again from the parameters */
+    c->state = state;
+    if (c->type == fmi2CoSimulation) drop_integrator(c);
     return fmi2OK;
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *FMUstate)
 {
-    instance *c = (instance *)comp;
-    CHECK_STATE("fmi2FreeFMUstate", S_ANY_BUT_FATAL);
+    instance *c = as_instance(comp);
+    /* allowed in every run state, fatal included: a state that cannot be freed is a leak */
+    if (!c) return fmi2Error;
     if (!FMUstate) return fmi2OK;
     free(*FMUstate);
     *FMUstate = NULL;
@@ -646,7 +767,7 @@ fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *FMUstate)
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component comp, fmi2FMUstate FMUstate, size_t *size)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2SerializedFMUstateSize", S_ANY_BUT_FATAL);
     CHECK_NOT_NULL("fmi2SerializedFMUstateSize", FMUstate);
     CHECK_NOT_NULL("fmi2SerializedFMUstateSize", size);
@@ -656,7 +777,7 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component comp, fmi2FMUstate FMUstate,
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2SerializeFMUstate", S_ANY_BUT_FATAL);
     CHECK_NOT_NULL("fmi2SerializeFMUstate", FMUstate);
     CHECK_NOT_NULL("fmi2SerializeFMUstate", serializedState);
@@ -669,7 +790,7 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate FMUstate, fmi2
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serializedState[], size_t size, fmi2FMUstate *FMUstate)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_STATE("fmi2DeSerializeFMUstate", S_ANY_BUT_FATAL);
     CHECK_NOT_NULL("fmi2DeSerializeFMUstate", serializedState);
     CHECK_NOT_NULL("fmi2DeSerializeFMUstate", FMUstate);
@@ -677,8 +798,10 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serialized
         return fail(c, "fmi2DeSerializeFMUstate: size = %zu, expected %zu bytes of a KevlarTether state", size, sizeof(snapshot));
     snapshot tmp;
     memcpy(&tmp, serializedState, sizeof tmp);
-    if (!snapshot_valid(&tmp)) return fail(c, "fmi2DeSerializeFMUstate: the bytes are not a state of this FMU (GUID %s)", KT_MODEL_GUID);
+    char msg[512];
+    if (snapshot_check(&tmp, msg, sizeof msg) != 0) return refuse(c, "fmi2DeSerializeFMUstate: the bytes are not a state this FMU may restore: %s", msg);
     snapshot *s = (snapshot *)*FMUstate;
+    if (s && !snapshot_valid(s)) return fail(c, "fmi2DeSerializeFMUstate: *FMUstate is not NULL and not a state of this FMU");
     if (!s) {
         s = (snapshot *)malloc(sizeof *s);
         if (!s) return fail(c, "fmi2DeSerializeFMUstate: out of memory");
@@ -692,7 +815,7 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueRefer
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
     CHECK_STATE("fmi2GetDirectionalDerivative", S_READABLE);
     return fail(c, "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative is false)");
@@ -701,12 +824,14 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueRefer
 /* ---- Model Exchange ------------------------------------------------------------------------ */
 #define CHECK_ME(function)                                                                         \
     do {                                                                                           \
-        if (c && c->type != fmi2ModelExchange)                                                     \
+        if (!c) return fmi2Error;                                                                  \
+        if (c->type != fmi2ModelExchange)                                                          \
             return fail(c, "%s: a Model Exchange function called on a Co-Simulation instance", function); \
     } while (0)
 #define CHECK_CS(function)                                                                         \
     do {                                                                                           \
-        if (c && c->type != fmi2CoSimulation)                                                      \
+        if (!c) return fmi2Error;                                                                  \
+        if (c->type != fmi2CoSimulation)                                                           \
             return fail(c, "%s: a Co-Simulation function called on a Model Exchange instance", function); \
     } while (0)
 
@@ -718,7 +843,7 @@ static fmi2Status check_count(instance *c, const char *function, const char *wha
 
 fmi2Status fmi2EnterEventMode(fmi2Component comp)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_ME("fmi2EnterEventMode");
     CHECK_STATE("fmi2EnterEventMode", S_EVENT | S_CONTINUOUS);
     c->state = S_EVENT;
@@ -727,7 +852,7 @@ fmi2Status fmi2EnterEventMode(fmi2Component comp)
 
 fmi2Status fmi2NewDiscreteStates(fmi2Component comp, fmi2EventInfo *info)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_ME("fmi2NewDiscreteStates");
     CHECK_STATE("fmi2NewDiscreteStates", S_EVENT);
     CHECK_NOT_NULL("fmi2NewDiscreteStates", info);
@@ -745,7 +870,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component comp, fmi2EventInfo *info)
 
 fmi2Status fmi2EnterContinuousTimeMode(fmi2Component comp)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_ME("fmi2EnterContinuousTimeMode");
     CHECK_STATE("fmi2EnterContinuousTimeMode", S_EVENT);
     c->state = S_CONTINUOUS;
@@ -755,7 +880,7 @@ fmi2Status fmi2EnterContinuousTimeMode(fmi2Component comp)
 fmi2Status fmi2CompletedIntegratorStep(fmi2Component comp, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     (void)noSetFMUStatePriorToCurrentPoint;
     CHECK_ME("fmi2CompletedIntegratorStep");
     CHECK_STATE("fmi2CompletedIntegratorStep", S_CONTINUOUS);
@@ -770,7 +895,7 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component comp, fmi2Boolean noSetFMUS
 
 fmi2Status fmi2SetTime(fmi2Component comp, fmi2Real time)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_ME("fmi2SetTime");
     CHECK_STATE("fmi2SetTime", S_EVENT | S_CONTINUOUS);
     if (!isfinite(time)) return fail(c, "fmi2SetTime: time = %g is not finite", time);
@@ -780,7 +905,7 @@ fmi2Status fmi2SetTime(fmi2Component comp, fmi2Real time)
 
 fmi2Status fmi2SetContinuousStates(fmi2Component comp, const fmi2Real x[], size_t nx)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_ME("fmi2SetContinuousStates");
     CHECK_STATE("fmi2SetContinuousStates", S_CONTINUOUS);
     CHECK_NOT_NULL("fmi2SetContinuousStates", x);
@@ -793,7 +918,7 @@ fmi2Status fmi2SetContinuousStates(fmi2Component comp, const fmi2Real x[], size_
 
 fmi2Status fmi2GetDerivatives(fmi2Component comp, fmi2Real derivatives[], size_t nx)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_ME("fmi2GetDerivatives");
     CHECK_STATE("fmi2GetDerivatives", S_INIT | S_EVENT | S_CONTINUOUS | S_TERMINATED | S_ERROR);
     CHECK_NOT_NULL("fmi2GetDerivatives", derivatives);
@@ -805,7 +930,7 @@ fmi2Status fmi2GetDerivatives(fmi2Component comp, fmi2Real derivatives[], size_t
 
 fmi2Status fmi2GetEventIndicators(fmi2Component comp, fmi2Real eventIndicators[], size_t ni)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_ME("fmi2GetEventIndicators");
     CHECK_STATE("fmi2GetEventIndicators", S_INIT | S_EVENT | S_CONTINUOUS | S_TERMINATED | S_ERROR);
     CHECK_NOT_NULL("fmi2GetEventIndicators", eventIndicators);
@@ -817,7 +942,7 @@ fmi2Status fmi2GetEventIndicators(fmi2Component comp, fmi2Real eventIndicators[]
 
 fmi2Status fmi2GetContinuousStates(fmi2Component comp, fmi2Real x[], size_t nx)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_ME("fmi2GetContinuousStates");
     CHECK_STATE("fmi2GetContinuousStates", S_INIT | S_EVENT | S_CONTINUOUS | S_TERMINATED | S_ERROR);
     CHECK_NOT_NULL("fmi2GetContinuousStates", x);
@@ -829,7 +954,7 @@ fmi2Status fmi2GetContinuousStates(fmi2Component comp, fmi2Real x[], size_t nx)
 
 fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component comp, fmi2Real x_nominal[], size_t nx)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_ME("fmi2GetNominalsOfContinuousStates");
     CHECK_STATE("fmi2GetNominalsOfContinuousStates", S_INSTANTIATED | S_INIT | S_EVENT | S_CONTINUOUS | S_TERMINATED | S_ERROR);
     CHECK_NOT_NULL("fmi2GetNominalsOfContinuousStates", x_nominal);
@@ -842,7 +967,7 @@ fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component comp, fmi2Real x_nomi
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_CS("fmi2SetRealInputDerivatives");
     CHECK_STATE("fmi2SetRealInputDerivatives", S_INSTANTIATED | S_INIT | S_STEP_COMPLETE);
     if (nvr == 0) return fmi2OK;
@@ -868,7 +993,7 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component comp, const fmi2ValueRefere
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
                                         const fmi2Integer order[], fmi2Real value[])
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     (void)vr; (void)order; (void)value;
     CHECK_CS("fmi2GetRealOutputDerivatives");
     CHECK_STATE("fmi2GetRealOutputDerivatives", S_STEP_COMPLETE | S_STEP_FAILED | S_TERMINATED | S_ERROR);
@@ -879,7 +1004,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component comp, const fmi2ValueRefer
 fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     (void)noSetFMUStatePriorToCurrentPoint;
     CHECK_CS("fmi2DoStep");
     CHECK_STATE("fmi2DoStep", S_STEP_COMPLETE);
@@ -923,7 +1048,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicationPoint, fm
 
 fmi2Status fmi2CancelStep(fmi2Component comp)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_CS("fmi2CancelStep");
     return fail(c, "fmi2CancelStep: steps are synchronous (canRunAsynchronuously is false); there is nothing to cancel");
 }
@@ -935,7 +1060,7 @@ static fmi2Status status_kind_error(instance *c, const char *function, int kind)
 
 fmi2Status fmi2GetStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Status *value)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_CS("fmi2GetStatus");
     CHECK_STATE("fmi2GetStatus", S_STEP_COMPLETE | S_STEP_FAILED | S_TERMINATED);
     CHECK_NOT_NULL("fmi2GetStatus", value);
@@ -948,7 +1073,7 @@ fmi2Status fmi2GetStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Status 
 
 fmi2Status fmi2GetRealStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Real *value)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_CS("fmi2GetRealStatus");
     CHECK_STATE("fmi2GetRealStatus", S_STEP_COMPLETE | S_STEP_FAILED | S_TERMINATED);
     CHECK_NOT_NULL("fmi2GetRealStatus", value);
@@ -961,7 +1086,7 @@ fmi2Status fmi2GetRealStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Rea
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Integer *value)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     (void)value;
     CHECK_CS("fmi2GetIntegerStatus");
     CHECK_STATE("fmi2GetIntegerStatus", S_STEP_COMPLETE | S_STEP_FAILED | S_TERMINATED);
@@ -970,7 +1095,7 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component comp, const fmi2StatusKind s, fmi2
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Boolean *value)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     CHECK_CS("fmi2GetBooleanStatus");
     CHECK_STATE("fmi2GetBooleanStatus", S_STEP_COMPLETE | S_STEP_FAILED | S_TERMINATED);
     CHECK_NOT_NULL("fmi2GetBooleanStatus", value);
@@ -983,7 +1108,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component comp, const fmi2StatusKind s, fmi2
 
 fmi2Status fmi2GetStringStatus(fmi2Component comp, const fmi2StatusKind s, fmi2String *value)
 {
-    instance *c = (instance *)comp;
+    instance *c = as_instance(comp);
     (void)value;
     CHECK_CS("fmi2GetStringStatus");
     CHECK_STATE("fmi2GetStringStatus", S_STEP_COMPLETE | S_STEP_FAILED | S_TERMINATED);

@@ -19,8 +19,8 @@ static double damping_table(const tether_params *p, double ax)
     enum { N = DAMPING_TABLE_KNOTS };
     const double y[N + 1] = {0.0, p->c_table_1, p->c_table_2, p->c_table_3, p->c_table_4, p->c_table_5, p->c_table_6};
     const double s = ax / p->c_table_dx;
-    if (s >= N) return y[N];
-    const int k = (int)s;
+    if (!(s < N)) return y[N]; /* also NaN: never an index */
+    const int k = (int)s; /* 0 <= s < N here: NaN and huge values were held above */
     const double f = s - k;
     /* slopes per knot spacing: 0 at both ends; inside, the Fritsch-Carlson weighted harmonic mean
      * of the neighbouring secants (0 where they differ in sign: an extremum stays at its knot) */

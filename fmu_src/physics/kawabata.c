@@ -32,6 +32,24 @@ double kawabata_virgin_tension(const tether_params *p, double eps)
     return p->kaw_F_ref * pow(eps / p->kaw_eps_ref, kawabata_loading_exponent(p));
 }
 
+/* The exponent of a nested branch (a minor loop: two or more turning points) spanning `span` in
+ * strain and `dF` in tension, whose own exponent is e. An exponent e > 1 makes the branch steepest
+ * at its far end from the flat start, e dF / span there; that is capped at KAWABATA_STIFFNESS_CAP
+ * times the start stiffness of the outer unloading branch (from R_1), by lowering the exponent
+ * towards 1 (the straight chord). Without the cap, a loop nested in the steep start of an
+ * unloading branch is q times stiffer than its parent, so a decaying vibration nests loops that
+ * stiffen without bound: the period shrinks to nothing and the events pile up (docs/robustness.md). */
+static double branch_exponent(const tether_params *p, const kawabata_memory *mem, double e, double span, double dF)
+{
+    if (mem->n < 2 || !(e > 1.0)) return e;
+    const double outer_span = (1.0 - p->kaw_residual) * mem->eps[0];
+    const double K_outer = kawabata_unloading_exponent(p) * mem->F[0] / outer_span;
+    if (!(K_outer > 0.0) || !isfinite(K_outer)) return e;
+    const double e_cap = KAWABATA_STIFFNESS_CAP * K_outer * span / fabs(dF);
+    if (!(e_cap < e)) return e;
+    return e_cap > 1.0 ? e_cap : 1.0;
+}
+
 void kawabata_reset(kawabata_memory *mem)
 {
     mem->n = 0;
@@ -65,11 +83,11 @@ double kawabata_tension(const tether_params *p, const kawabata_memory *mem, doub
     if (mem->direction > 0) {
         const double s = (eps - ea) / span;
         if (s <= 0.0) return Fa;
-        return Fa + (Fb - Fa) * pow(s, kawabata_loading_exponent(p));
+        return Fa + (Fb - Fa) * pow(s, branch_exponent(p, mem, kawabata_loading_exponent(p), span, Fb - Fa));
     }
     const double s = (eps - eb) / span;
     if (s <= 0.0) return Fb;
-    return Fb + (Fa - Fb) * pow(s, kawabata_unloading_exponent(p));
+    return Fb + (Fa - Fb) * pow(s, branch_exponent(p, mem, kawabata_unloading_exponent(p), span, Fa - Fb));
 }
 
 double kawabata_stiffness(const tether_params *p, const kawabata_memory *mem, double eps)
@@ -86,10 +104,10 @@ double kawabata_stiffness(const tether_params *p, const kawabata_memory *mem, do
     const double span = mem->direction > 0 ? eb - ea : ea - eb;
     if (!(span > 0.0)) return 0.0;
     if (mem->direction > 0) {
-        const double s = (eps - ea) / span, e = kawabata_loading_exponent(p);
+        const double s = (eps - ea) / span, e = branch_exponent(p, mem, kawabata_loading_exponent(p), span, Fb - Fa);
         return s <= 0.0 ? 0.0 : (Fb - Fa) * e * pow(s, e - 1.0) / span;
     }
-    const double s = (eps - eb) / span, e = kawabata_unloading_exponent(p);
+    const double s = (eps - eb) / span, e = branch_exponent(p, mem, kawabata_unloading_exponent(p), span, Fa - Fb);
     return s <= 0.0 ? 0.0 : (Fa - Fb) * e * pow(s, e - 1.0) / span;
 }
 
@@ -105,10 +123,10 @@ double kawabata_strain_at(const tether_params *p, const kawabata_memory *mem, do
     if (!(span > 0.0) || Fa == Fb) return ea;
     if (mem->direction > 0) {
         const double r = (F - Fa) / (Fb - Fa);
-        return r <= 0.0 ? ea : ea + span * pow(r, 1.0 / kawabata_loading_exponent(p));
+        return r <= 0.0 ? ea : ea + span * pow(r, 1.0 / branch_exponent(p, mem, kawabata_loading_exponent(p), span, Fb - Fa));
     }
     const double r = (F - Fb) / (Fa - Fb);
-    return r <= 0.0 ? eb : eb + span * pow(r, 1.0 / kawabata_unloading_exponent(p));
+    return r <= 0.0 ? eb : eb + span * pow(r, 1.0 / branch_exponent(p, mem, kawabata_unloading_exponent(p), span, Fa - Fb));
 }
 
 void kawabata_reverse(const tether_params *p, kawabata_memory *mem, double eps, double F)

@@ -32,6 +32,11 @@ double damping_coefficient(const tether_params *p, double x, double v);
 
 /* ---- Kawabata loading/unloading hysteresis ------------------------------------------------ */
 #define KAWABATA_MAX_REVERSALS 64
+/* a minor loop's branch is at most this many times as stiff as the outer unloading branch's start
+ * (kawabata.c); a build may set it (a huge value switches the cap off, to measure without it) */
+#ifndef KAWABATA_STIFFNESS_CAP
+#define KAWABATA_STIFFNESS_CAP 10.0
+#endif
 /* Reversal memory: the turning points R_1..R_n in order. R_1 is the largest strain reached on the
  * virgin loading curve; odd points start unloading branches, even points start reloading
  * branches. The current branch runs from R_n towards R_{n-1} (or, for n = 1, towards the residual

@@ -15,9 +15,12 @@
 
 #define N_STATES TETHER_NUMBER_OF_STATES
 #define N_EVENTS TETHER_NUMBER_OF_EVENT_INDICATORS
-/* a step that needs more events than this is a Zeno run (chattering) */
-#define MAX_EVENTS_PER_ADVANCE 100000L
-/* steps CVODE may take within one advance before it gives up (a stuck or runaway run) */
+/* One advance (one communication step) has a bounded cost, whatever the model does: at most this
+ * many events (a run that needs more is chattering; a storm of this many costs well under a second,
+ * docs/robustness.md) ... */
+#define MAX_EVENTS_PER_ADVANCE 5000L
+/* ... and at most this many CVODE steps in all, across the restarts at events (a stuck, runaway or
+ * chattering run) */
 #define INTEGRATOR_MAX_STEPS 200000L
 
 struct tether_integrator {
@@ -33,8 +36,14 @@ struct tether_integrator {
     integrator_log_fn log;
     void *log_ctx;
     long events, resets;
+    long runaway_refusals; /* rhs calls refused as a runaway within this advance */
     char error[512];
 };
+
+/* After this many refused rhs calls CVODE is stopped: it treats a refused rhs as a failed step
+ * and would otherwise creep towards the runaway boundary in ever smaller steps (up to its whole
+ * step budget, ~1 s) */
+#define RUNAWAY_REFUSALS_TO_STOP 50
 
 double integrator_local_tolerance(double rtol)
 {
@@ -45,7 +54,10 @@ double integrator_local_tolerance(double rtol)
 static int rhs(realtype t, N_Vector y, N_Vector ydot, void *user)
 {
     tether_integrator *I = (tether_integrator *)user;
-    if (tether_runaway(I->M, t, NV_DATA_S(y), I->error, sizeof I->error)) return -1; /* stop now */
+    if (tether_runaway(I->M, t, NV_DATA_S(y), I->error, sizeof I->error)) {
+        I->runaway_refusals += 1;
+        return -1; /* stop now */
+    }
     tether_derivatives(I->M, t, NV_DATA_S(y), NV_DATA_S(ydot));
     for (int i = 0; i < N_STATES; ++i)
         if (!isfinite(NV_Ith_S(ydot, i))) return 1; /* recoverable: CVODE retries a smaller step */
@@ -56,7 +68,7 @@ static int roots(realtype t, N_Vector y, realtype *g, void *user)
 {
     const tether_integrator *I = (const tether_integrator *)user;
     tether_event_indicators(I->M, t, NV_DATA_S(y), g);
-    return 0;
+    return I->runaway_refusals >= RUNAWAY_REFUSALS_TO_STOP ? -1 : 0; /* -1: CVode returns at once */
 }
 
 static void on_cvode_error(int code, const char *module, const char *function, char *msg, void *user)
@@ -132,12 +144,27 @@ int integrator_reset(tether_integrator *I, double t, const double *y)
 
 int integrator_advance(tether_integrator *I, double t_end, double *t_reached, double *y)
 {
-    long events = 0;
+    long events = 0, steps = 0;
     I->error[0] = '\0';
+    I->runaway_refusals = 0;
     while (I->t < t_end) {
+        if (steps >= INTEGRATOR_MAX_STEPS) {
+            snprintf(I->error, sizeof I->error, "%ld solver steps and %ld events within one step, stopped at "
+                     "t = %.17g s before t = %.17g s (a stuck, runaway or chattering run)", steps, events, I->t, t_end);
+            break;
+        }
         realtype tret = I->t;
         CVodeSetStopTime(I->cvode, t_end);
+        long before = 0, after = 0;
+        CVodeGetNumSteps(I->cvode, &before);
+        CVodeSetMaxNumSteps(I->cvode, INTEGRATOR_MAX_STEPS - steps); /* what is left of the budget, >= 1 */
         const int flag = CVode(I->cvode, t_end, I->y, &tret, CV_NORMAL);
+        CVodeGetNumSteps(I->cvode, &after);
+        steps += after - before;
+        if (flag == CV_TOO_MUCH_WORK && I->runaway_refusals == 0) { /* a runaway is the more specific reason */
+            snprintf(I->error, sizeof I->error, "%ld solver steps and %ld events within one step, stopped at "
+                     "t = %.17g s before t = %.17g s (a stuck, runaway or chattering run)", steps, events, (double)tret, t_end);
+        }
         if (flag == CV_ROOT_RETURN) {
             I->t = tret;
             char note[1024];
@@ -146,8 +173,8 @@ int integrator_advance(tether_integrator *I, double t_end, double *t_reached, do
                 if (I->log) I->log(I->log_ctx, note);
                 I->events += switches;
                 if (++events > MAX_EVENTS_PER_ADVANCE) {
-                    snprintf(I->error, sizeof I->error, "more than %ld events before t = %.17g s (chattering)",
-                             MAX_EVENTS_PER_ADVANCE, t_end);
+                    snprintf(I->error, sizeof I->error, "more than %ld events within one step, stopped at t = %.17g s "
+                             "before t = %.17g s (chattering)", MAX_EVENTS_PER_ADVANCE, (double)tret, t_end);
                     break;
                 }
                 if (CVodeReInit(I->cvode, tret, I->y) != CV_SUCCESS) break;
