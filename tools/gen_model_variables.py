@@ -65,13 +65,12 @@ def main(xml_path: str, out_path: str) -> None:
             reals.append(f'  X({vr}, {ident}, "{name}", KT_{kind}, "{var}", {has_start}, {start}, '
                          f'{repr(float(lo)) if lo else "-HUGE_VAL"}, {repr(float(hi)) if hi else "HUGE_VAL"})')
         elif t.tag in ("Integer", "Enumeration"):
-            items = []
+            lo, hi = int(t.get("min", -2147483647)), int(t.get("max", 2147483647))
             if t.tag == "Enumeration":
                 dt = t.get("declaredType")
                 st = root.find(f"TypeDefinitions/SimpleType[@name='{dt}']/Enumeration")
                 items = [int(i.get("value")) for i in st]
-            lo = min(items) if items else -2147483647
-            hi = max(items) if items else 2147483647
+                lo, hi = min(items), max(items)
             ints.append(f'  X({vr}, {ident}, "{name}", KT_{kind}, "{var}", {int(t.get("start", "0"))}, {lo}, {hi})')
         elif t.tag == "Boolean":
             start = t.get("start")

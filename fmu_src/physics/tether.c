@@ -446,6 +446,7 @@ void tether_compute_outputs(const tether_model *M, double t, const double *y, te
     memset(o, 0, sizeof *o);
     o->tension = s.T;
     o->elongation = s.u;
+    o->total_elongation = s.u;
     o->strain = s.u / s.L0;
     o->displacement = s.u - M->d.balance_elongation;
     o->velocity = s.udot;

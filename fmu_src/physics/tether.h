@@ -75,7 +75,7 @@ typedef struct {
 
 /* Everything an observer may want at one instant; field names are modelDescription.xml's. */
 typedef struct {
-    double tension, strain, elongation, displacement, velocity;
+    double tension, strain, elongation, total_elongation, displacement, velocity;
     double load_elongation, hysteretic_force, creep_strain_1, creep_strain_2, creep_strain_3;
     double slip_strain, slip_capacity;
     double der_displacement, der_velocity, der_load_elongation, der_hysteretic_force;

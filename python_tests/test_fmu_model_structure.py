@@ -1,0 +1,147 @@
+"""modelDescription.xml's ModelStructure against the FMU's behaviour.
+
+The dependencies an importer reads from <Outputs> and <Derivatives> decide where it sees algebraic
+loops, so they must not lie. Model Exchange lets us evaluate the FMU at one instant without a
+step: perturb one input or one continuous state, and the outputs and derivatives that move at once
+are the ones that depend on it directly. ModelStructure is one for all configurations, so:
+- every dependency observed in any configuration (each rig with each law) must be declared;
+- every declared dependency must be observed in at least one configuration (no padding).
+"""
+import ctypes
+from ctypes import POINTER, c_double, c_size_t
+
+import pytest
+
+import fmu_harness as H
+
+INPUTS = ["L0", "elongation", "elongation_rate", "force", "load"]
+
+# laws and states chosen so that every coupling is active: taut tether, creep with the load past
+# slip_load_half, Bouc-Wen away from z = 0, the Iwan bank in motion
+CREEP = dict(creep=True, creep_J1=2e-5, creep_J2=1e-5, creep_J3=5e-6)
+CONFIGURATIONS = {
+    "payload boucwen creep": dict(rig=2, stiffness=2, damping=2, hysteresis=3, x0=0.05, v0=0.2, z0=1.0) | CREEP,
+    "payload kawabata": dict(rig=2, hysteresis=2, damping=2, x0=0.05, v0=0.2),
+    "payload iwan": dict(rig=2, stiffness=1, hysteresis=4, x0=0.05, v0=0.2),
+    "element boucwen creep": dict(rig=1, stiffness=2, damping=2, hysteresis=3, z0=1.0, elongation=0.3,
+                                  elongation_rate=0.1) | CREEP,
+    "element iwan": dict(rig=1, stiffness=1, hysteresis=4, elongation=0.2, elongation_rate=0.1),
+    "load boucwen creep": dict(rig=3, stiffness=2, hysteresis=3, z0=1.0, load=60.0) | CREEP,
+    "load kawabata": dict(rig=3, hysteresis=2, load=60.0),
+    "load iwan creep": dict(rig=3, stiffness=1, hysteresis=4, load=60.0) | CREEP,
+}
+
+
+def declared():
+    """{unknown name: set of the names it depends on}, for Outputs and Derivatives."""
+    md = H.model_description()
+    out = {}
+    for u in list(md.outputs) + list(md.derivatives):
+        out[u.variable.name] = {d.name for d in u.dependencies}
+    return out
+
+
+class MEPoint:
+    """A Model Exchange instance in continuous-time mode, evaluated without stepping."""
+
+    def __init__(self, values):
+        self.inst = H.Instance("me")
+        self.inst.initialize(values)
+        self.inst.check(self.inst.call("fmi2EnterContinuousTimeMode", []), "fmi2EnterContinuousTimeMode")
+        self.n = len(H.STATE_NAMES)
+
+    def _array_call(self, function, values=None):
+        arr = (c_double * self.n)(*(values or [0.0] * self.n))
+        self.inst.check(self.inst.call(function, [POINTER(c_double), c_size_t], arr, self.n), function)
+        return list(arr)
+
+    def states(self):
+        return self._array_call("fmi2GetContinuousStates")
+
+    def set_states(self, x):
+        self._array_call("fmi2SetContinuousStates", x)
+
+    def snapshot(self, unknowns):
+        """{name: value} of the outputs (fmi2GetReal) and derivatives (fmi2GetDerivatives)."""
+        ders = dict(zip(["der(%s)" % s for s in H.STATE_NAMES], self._array_call("fmi2GetDerivatives")))
+        outs = [u for u in unknowns if u not in ders]
+        st, vals = self.inst.get_reals_raw([H.vr(u) for u in outs])
+        self.inst.check(st, "fmi2GetReal")
+        return dict(zip(outs, vals)) | {u: ders[u] for u in unknowns if u in ders}
+
+    def free(self):
+        self.inst.free()
+
+
+def bump(v):
+    return v + 1e-6 * max(1.0, abs(v))
+
+
+def observed(values, unknowns):
+    """{unknown: set of the inputs and states whose perturbation moves it}, at one instant."""
+    p = MEPoint(values)
+    try:
+        base = p.snapshot(unknowns)
+        seen = {u: set() for u in unknowns}
+
+        def record(cause, now):
+            for u in unknowns:
+                if now[u] != base[u]:
+                    seen[u].add(cause)
+
+        for name in INPUTS:
+            v = p.inst.get(name)
+            p.inst.check(p.inst.set_real([H.vr(name)], [bump(v)]), f"set {name}")
+            record(name, p.snapshot(unknowns))
+            p.inst.check(p.inst.set_real([H.vr(name)], [v]), f"reset {name}")
+        x = p.states()
+        for i, name in enumerate(H.STATE_NAMES):
+            p.set_states(x[:i] + [bump(x[i])] + x[i + 1:])
+            record(name, p.snapshot(unknowns))
+            p.set_states(x)
+        assert p.snapshot(unknowns) == base, "the instance did not return to its starting point"
+        assert not p.inst.get("is_slack"), "the configuration should keep the tether taut"
+        return seen
+    finally:
+        p.free()
+
+
+@pytest.fixture(scope="module")
+def observations():
+    unknowns = list(declared())
+    return {label: observed(values, unknowns) for label, values in CONFIGURATIONS.items()}
+
+
+def test_model_structure_lists_every_output_and_derivative():
+    md = H.model_description()
+    outputs = sorted(v.name for v in md.modelVariables if v.causality == "output")
+    assert sorted(u.variable.name for u in md.outputs) == outputs
+    assert "total_elongation" in outputs
+    assert [u.variable.name for u in md.derivatives] == ["der(%s)" % s for s in H.STATE_NAMES]
+    initial = {u.variable.name for u in md.initialUnknowns}
+    assert set(outputs) | {"der(%s)" % s for s in H.STATE_NAMES} | set(H.STATE_NAMES) <= initial
+
+
+def test_every_dependency_the_fmu_shows_is_declared(observations):
+    decl = declared()
+    missing = {}
+    for label, seen in observations.items():
+        for u, causes in seen.items():
+            extra = causes - decl[u]
+            if extra:
+                missing.setdefault(u, set()).update(f"{c} ({label})" for c in extra)
+    assert not missing, f"undeclared dependencies: {missing}"
+
+
+def test_every_declared_dependency_shows_in_some_configuration(observations):
+    decl = declared()
+    union = {u: set().union(*(seen[u] for seen in observations.values())) for u in decl}
+    padding = {u: decl[u] - union[u] for u in decl if decl[u] - union[u]}
+    assert not padding, f"declared but never observed: {padding}"
+
+
+def test_payload_tension_depends_on_the_state_not_on_the_input_force():
+    """The issue's example: no direct feedthrough from force to tension (no spurious loop)."""
+    decl = declared()
+    assert "force" not in decl["tension"] and "displacement" in decl["tension"]
+    assert "force" in decl["der(velocity)"]
