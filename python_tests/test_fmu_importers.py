@@ -7,9 +7,9 @@
 
 The nonlinear case is the modelDescription's default configuration (payload rig, cubic law,
 displacement-dependent damping, slack on) released 0.35 m below the balance, so that the tether
-goes slack and taut again during the run. libcosim ignores FMI 2.0 Enumeration variables
-("Enumeration variable type not supported"), so that case can only use the enumerations' start
-values; the test asserts they are what it means to run.
+goes slack and taut again during the run. The libcosim case runs on the switches' start values;
+the test asserts they are what it means to run (test_fmu_cosim_switches sets every switch from
+fmpy, libcosim and ecos).
 """
 import numpy as np
 import pytest
@@ -22,7 +22,7 @@ NONLINEAR_FULL = dict(rig=2, stiffness=2, damping=2, hysteresis=1, creep=False, 
 
 
 def test_default_configuration_is_the_nonlinear_case():
-    """libcosim cannot set enumerations: the defaults must be payload, cubic, c(x) damping, slack."""
+    """The switches' defaults (Integer variables, once Enumerations): payload, cubic, c(x) damping, slack."""
     start = {v.name: v.start for v in H.model_description().modelVariables}
     assert (start["rig"], start["stiffness"], start["damping"], start["hysteresis"]) == ("2", "2", "2", "1")
     assert start["slack"] == "true" and start["creep"] == "false"

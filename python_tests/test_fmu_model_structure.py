@@ -7,9 +7,9 @@ are the ones that depend on it directly. ModelStructure is one for all configura
 - every dependency observed in any configuration (each rig with each law) must be declared;
 - every declared dependency must be observed in at least one configuration (no padding).
 """
-import ctypes
 from ctypes import POINTER, c_double, c_size_t
 
+import numpy as np
 import pytest
 
 import fmu_harness as H
@@ -145,3 +145,39 @@ def test_payload_tension_depends_on_the_state_not_on_the_input_force():
     decl = declared()
     assert "force" not in decl["tension"] and "displacement" in decl["tension"]
     assert "force" in decl["der(velocity)"]
+
+
+@pytest.mark.parametrize("rig, values", [
+    (1, dict(elongation=0.3, elongation_rate=0.1)),
+    (2, dict(x0=0.05, v0=0.2)),
+    (3, dict(load=60.0)),
+])
+def test_total_elongation_is_the_elongation_in_every_rig(rig, values):
+    """The output total_elongation: the load rig's result (once only readable through the input
+    variable elongation, which still reads it back), the input in the element rig, the balance
+    stretch plus the displacement in the payload rig; strain L0 in all three."""
+    inst = H.cs(dict(rig=rig, stiffness=1, damping=1, L0=16.0) | values)
+    r = H.run_cs(inst, np.arange(201) * 1e-3, ["total_elongation", "elongation", "strain", "displacement"])
+    bal = inst.get("balance_elongation")
+    inst.free()
+    u = r["total_elongation"]
+    assert np.array_equal(u, r["elongation"])
+    assert np.allclose(u, 16.0 * r["strain"], rtol=1e-14, atol=0.0)
+    if rig == 1:
+        assert np.all(u == 0.3)
+    elif rig == 2:
+        assert np.allclose(u, bal + r["displacement"], rtol=1e-14, atol=0.0) and u[0] == bal + 0.05
+    else:
+        assert np.allclose(u, 16.0 * 60.0 / float(H.variables()["EA"].start), rtol=1e-6)
+
+
+def test_python_package_switch_values_are_the_fmus():
+    """tether.models names the switch values; the FMU's descriptions list them: the same pairs."""
+    import re
+
+    from tether import models
+    md = {v.name: v for v in H.model_description().modelVariables}
+    for name, table in {"rig": models.RIG, "stiffness": models.STIFFNESS, "damping": models.DAMPING,
+                        "hysteresis": models.HYSTERESIS}.items():
+        listed = {label: int(k) for k, label in re.findall(r"\b(\d+) = ([a-z_]+)\b", md[name].description)}
+        assert listed == table, name

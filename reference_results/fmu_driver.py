@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import atexit
 import os
+import re
 import shutil
 from pathlib import Path
 
@@ -27,6 +28,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 
 _CACHE: dict = {}
+SWITCH_VALUE = re.compile(r"\b(\d+) = ([a-z_]+)\b")
 
 
 def fmu_path() -> Path:
@@ -54,8 +56,9 @@ class _Model:
         self.unzipdir = extract(str(path))
         atexit.register(shutil.rmtree, self.unzipdir, ignore_errors=True)
         self.vars = {v.name: v for v in self.md.modelVariables}
-        self.enums = {t.name: {i.name: int(i.value) for i in t.items}
-                      for t in self.md.typeDefinitions if getattr(t, "items", None)}
+        # the switches are Integer variables whose descriptions list their values as "1 = element, ..."
+        self.switch_values = {v.name: {label: int(k) for k, label in SWITCH_VALUE.findall(v.description or "")}
+                              for v in self.md.modelVariables if v.type == "Integer"}
 
     def vr(self, name: str) -> int:
         try:
@@ -65,7 +68,7 @@ class _Model:
 
     def start_value(self, name: str):
         v = self.vars[name]
-        if v.type == "Enumeration":
+        if v.type == "Integer":
             return int(v.start)
         if v.type == "Boolean":
             return v.start in (True, "true", "1", 1)
@@ -117,11 +120,12 @@ class Instance:
             if var is None:
                 raise FMUError(f"the FMU has no variable named {name!r}")
             vr = [var.valueReference]
-            if var.type == "Enumeration":
+            if var.type == "Integer":
                 if isinstance(value, str):
-                    value = self.m.enums[var.declaredType.name][value]
-                self.s.setInteger(vr, [int(value)])
-            elif var.type == "Integer":
+                    values = self.m.switch_values[name]
+                    if value not in values:
+                        raise FMUError(f"{name} = {value!r}: expected one of {', '.join(values)}")
+                    value = values[value]
                 self.s.setInteger(vr, [int(value)])
             elif var.type == "Boolean":
                 self.s.setBoolean(vr, [bool(value)])

@@ -6,6 +6,7 @@
 scripts/package_fmu.py imports render() to put the page into the FMU.
 """
 import html
+import re
 import sys
 import xml.etree.ElementTree as ET
 
@@ -30,16 +31,36 @@ def type_elem(sv):
     return None
 
 
+# an Integer switch's description lists its values: "1 = element (what it is), 2 = payload (...)"
+SWITCH_VALUE = re.compile(r"\b(\d+) = ([a-z_]+)\b")
+
+
+def switch_values(description):
+    """[(value, name, what it is)] listed in a switch's description (the parenthesis after each name)."""
+    out = []
+    for m in SWITCH_VALUE.finditer(description or ""):
+        rest, what = description[m.end():], ""
+        if rest.startswith(" ("):
+            depth = 0
+            for i, ch in enumerate(rest[1:], 1):
+                depth += {"(": 1, ")": -1}.get(ch, 0)
+                if depth == 0:
+                    what = rest[2:i]
+                    break
+        out.append((m.group(1), m.group(2), what))
+    return out
+
+
 def render(root, extra=None):
     """root: the parsed <fmiModelDescription> element. extra: {'sundials_version', 'source_files'}."""
     extra = extra or {}
     a = root.attrib
     name = a.get("modelName", "FMU")
-    enums = {}
-    for st in root.iter("SimpleType"):
-        en = st.find("Enumeration")
-        if en is not None:
-            enums[st.get("name")] = [(it.get("value"), it.get("name"), it.get("description", "")) for it in en.findall("Item")]
+    enums = {}   # switch variable -> [(value, name, description)]
+    for sv in root.iter("ScalarVariable"):
+        t = type_elem(sv)
+        if t is not None and t.tag == "Integer" and switch_values(sv.get("description")):
+            enums[sv.get("name")] = switch_values(sv.get("description"))
 
     out = []
     w = out.append
@@ -77,16 +98,16 @@ def render(root, extra=None):
         w("<li>Default experiment: %s.</li>\n" % e(", ".join("%s=%s" % kv for kv in de.attrib.items())))
     w("</ul>\n")
 
-    if "RigType" in enums:
+    if "rig" in enums:
         w("<h2>Rigs</h2>\n<p>Parameter <code>rig</code> selects the test rig:</p>\n<table>\n"
           "<tr><th>value</th><th>rig</th><th>description</th></tr>\n")
-        for v, n, d in enums["RigType"]:
+        for v, n, d in enums["rig"]:
             w("<tr><td class=\"num\">%s</td><td><code>%s</code></td><td>%s</td></tr>\n" % (e(v), e(n), e(d)))
         w("</table>\n")
 
-    others = [k for k in enums if k != "RigType"]
+    others = [k for k in enums if k != "rig"]
     if others:
-        w("<h2>Model switches</h2>\n<table>\n<tr><th>type</th><th>value</th><th>name</th><th>description</th></tr>\n")
+        w("<h2>Model switches</h2>\n<table>\n<tr><th>parameter</th><th>value</th><th>name</th><th>description</th></tr>\n")
         for k in others:
             for v, n, d in enums[k]:
                 w("<tr><td>%s</td><td class=\"num\">%s</td><td><code>%s</code></td><td>%s</td></tr>\n"
@@ -102,8 +123,8 @@ def render(root, extra=None):
         if t is not None and t.get("declaredType"):
             tname = "%s (%s)" % (tname, t.get("declaredType"))
         start = t.get("start", "") if t is not None else ""
-        if t is not None and t.tag == "Enumeration" and t.get("declaredType") in enums and start:
-            for v, n, _ in enums[t.get("declaredType")]:
+        if t is not None and sv.get("name") in enums and start:
+            for v, n, _ in enums[sv.get("name")]:
                 if v == start:
                     start = "%s (%s)" % (n, v)
         if t is not None and t.get("derivative"):

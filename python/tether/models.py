@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 # ---------------------------------------------------------------------------------------------
-# FMU enumeration values (modelDescription.xml TypeDefinitions)
+# values of the FMU's Integer switches (each listed in its description in modelDescription.xml)
 RIG = {"element": 1, "payload": 2, "load": 3}
 STIFFNESS = {"linear": 1, "cubic": 2}
 DAMPING = {"viscous": 1, "displacement": 2}

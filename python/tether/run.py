@@ -379,7 +379,9 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
     N = len(t)
     name = str(trace.stem)
     in_name = trace.input_column
-    out_names = (trace.measured_column, "tension")
+    # the FMU output that simulates the measured column: the load rig's elongation is the output
+    # total_elongation (the input variable elongation only reads it back, kept for old importers)
+    out_names = ({"elongation": "total_elongation"}.get(trace.measured_column, trace.measured_column), "tension")
 
     # input reconstruction
     if periodic:
