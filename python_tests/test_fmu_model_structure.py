@@ -33,11 +33,13 @@ CONFIGURATIONS = {
 
 
 def declared():
-    """{unknown name: set of the names it depends on}, for Outputs and Derivatives."""
+    """{unknown name: set of the names it depends on}, for Outputs and Derivatives (no
+    dependencies attribute: FMI's default, every input and state)."""
     md = H.model_description()
     out = {}
     for u in list(md.outputs) + list(md.derivatives):
-        out[u.variable.name] = {d.name for d in u.dependencies}
+        deps = u.dependencies
+        out[u.variable.name] = set(INPUTS + H.STATE_NAMES) if deps is None else {d.name for d in deps}
     return out
 
 
