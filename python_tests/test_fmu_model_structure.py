@@ -183,3 +183,53 @@ def test_python_package_switch_values_are_the_fmus():
                         "hysteresis": models.HYSTERESIS}.items():
         listed = {label: int(k) for k, label in re.findall(r"\b(\d+) = ([a-z_]+)\b", md[name].description)}
         assert listed == table, name
+
+
+def test_tension_feeds_through_from_a_new_elongation_at_once_across_slack():
+    """ModelStructure says the element rig's tension depends directly on its elongation: set a
+    new elongation and the tension answers before any step, also where the tether goes from slack
+    to taut (libcosim reads outputs so at the start; an iterating master at every step)."""
+    ea, L0, u = 3500.0, 16.0, 0.34
+    inst = H.cs(dict(rig=1, stiffness=1, damping=1, slack=True, EA=ea, L0=L0))   # u = 0: slack
+    assert inst.get("tension") == 0.0 and inst.get("is_slack")
+    inst.check(inst.set_real([H.vr("elongation")], [u]), "set elongation")
+    assert inst.get("tension") == pytest.approx(ea * u / L0, rel=1e-12) and not inst.get("is_slack")
+    inst.check(inst.set_real([H.vr("elongation")], [-0.01]), "set elongation")
+    assert inst.get("tension") == 0.0 and inst.get("is_slack")
+    inst.free()
+
+
+def test_reading_outputs_after_new_inputs_changes_nothing_in_the_fmu_state():
+    """The slack switch made for outputs read between steps is made on a copy: the FMU state (its
+    serialized bytes) is the same before and after the read; the next step makes the switch."""
+    inst = H.cs(dict(rig=1, stiffness=1, damping=1, slack=True))      # u = 0: slack
+    inst.check(inst.set_real([H.vr("elongation")], [0.34]), "set elongation")
+
+    def blob():
+        state = inst.fmu.getFMUstate()
+        data = bytes(inst.fmu.serializeFMUstate(state))
+        inst.fmu.freeFMUstate(state)
+        return data
+
+    before = blob()
+    assert not inst.get("is_slack")
+    assert blob() == before
+    inst.check(inst.do_step(0.0, 1e-4), "fmi2DoStep")
+    assert not inst.get("is_slack") and blob() != before
+    inst.free()
+
+
+@pytest.mark.parametrize("kind", ["cs", "me"])
+def test_an_input_set_in_initialization_mode_after_a_read_is_used(kind):
+    """An importer may read outputs in initialization mode, then set the inputs it connected
+    (libcosim does): the initial state must follow the inputs as they stand at the end."""
+    ea, L0, load = 3500.0, 16.0, 60.0
+    inst = H.Instance(kind)
+    inst.check(inst.setup(), "fmi2SetupExperiment")
+    inst.set_all(dict(rig=3, stiffness=1, EA=ea, L0=L0))
+    inst.check(inst.enter_init(), "fmi2EnterInitializationMode")
+    assert inst.get("strain") == 0.0        # load 0: unstretched
+    inst.check(inst.set_real([H.vr("load")], [load]), "set load")
+    inst.check(inst.exit_init(), "fmi2ExitInitializationMode")
+    assert inst.get("strain") == pytest.approx(load / ea, rel=1e-12)
+    inst.free()

@@ -384,6 +384,15 @@ static const char *real_name(fmi2ValueReference vr)
 
 static void compute_outputs(instance *c, tether_outputs *o)
 {
+    /* Co-Simulation, inputs set since the last step: they switch the slack mode at once (the element
+     * rig's tension feeds straight through from its elongation). The switch is made on a copy; the
+     * next step makes it for good, so a master that tries inputs out leaves the memory untouched. */
+    if (c->type == fmi2CoSimulation && c->needs_reset && c->state != S_INIT) {
+        tether_model switched = c->model;
+        tether_event_update(&switched, c->time, c->y, NULL, 0);
+        tether_compute_outputs(&switched, c->time, c->y, o);
+        return;
+    }
     tether_compute_outputs(&c->model, c->time, c->y, o);
 }
 
@@ -509,7 +518,7 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
         SET_REAL_##kind(id, v) break;
 #define SET_REAL_KT_PARAM(id, v) c->model.p.id = v; c->initialized = 0;
 #define SET_REAL_KT_INPUT(id, v)                                                                   \
-    if (c->model.in.id != v) { c->model.in.id = v; c->needs_reset = 1; }
+    if (c->model.in.id != v) { c->model.in.id = v; c->needs_reset = 1; if (c->state == S_INIT) c->initialized = 0; }
 #define SET_REAL_KT_CALC(id, v)
 #define SET_REAL_KT_OUTPUT(id, v)
 #define SET_REAL_KT_LOCAL(id, v)
