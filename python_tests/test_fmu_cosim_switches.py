@@ -7,7 +7,8 @@ point mass under gravity pulled up by the tether), is the payload rig split in t
     tether.tension -> mass.tether_force
 
 Each importer (fmpy, libcosimpy, ecospy) sets all five Integer switches away from their defaults
-(rig element, linear stiffness, viscous damping, Bouc-Wen hysteresis, BDF) and reads them back,
+(rig element, linear stiffness, viscous damping, Bouc-Wen hysteresis, BDF), and the two Boolean
+ones (creep on, slack off), and reads them back,
 runs 5 s at a communication step of 1e-4 s, and must reproduce the payload rig of the same
 configuration (run alone through fmpy) to 1e-3 m. A switch an importer fails to set changes the
 physics (the defaults are the cubic law, displacement-dependent damping, no hysteresis, payload
@@ -27,6 +28,7 @@ import fmu_harness as H
 
 SWITCHES = dict(stiffness=1, damping=1, hysteresis=3, integrator=2)
 ELEMENT = dict(rig=1) | SWITCHES
+FLAGS = dict(creep=True, slack=False)   # the Boolean switches, also away from their defaults
 X0 = 0.15            # release below the balance [m]
 H_STEP = 1e-4        # communication step [s]
 N_STEPS = 50_000     # 5 s
@@ -58,7 +60,7 @@ def test_switches_are_integers_whose_descriptions_list_their_values():
 @pytest.fixture(scope="module")
 def payload_reference():
     """The payload rig alone (fmpy): displacement on the grid, and the balance stretch."""
-    inst = H.cs(dict(rig=2, x0=X0) | SWITCHES)
+    inst = H.cs(dict(rig=2, x0=X0) | SWITCHES | FLAGS)
     bal = inst.get("balance_elongation")
     r = H.run_cs(inst, np.arange(N_STEPS + 1) * H_STEP, ["displacement"])
     inst.free()
@@ -77,8 +79,8 @@ def test_fmpy_element_rig_with_mass_reproduces_payload_rig(payload_reference):
 
     ref, bal = payload_reference
     t0 = time.perf_counter()
-    tether = H.cs(ELEMENT | dict(elongation=bal + X0))
-    assert tether.get(*ELEMENT) == list(ELEMENT.values())
+    tether = H.cs(ELEMENT | FLAGS | dict(elongation=bal + X0))
+    assert tether.get(*ELEMENT, *FLAGS) == list(ELEMENT.values()) + list(FLAGS.values())
     md = read_model_description(str(require_mass_fmu()))
     mass = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(MASS_FMU)), modelIdentifier="PointMass",
                      instanceName="mass")
@@ -127,6 +129,8 @@ def test_libcosim_element_rig_with_mass_reproduces_payload_rig(payload_reference
     mvr = {v.name.decode(): v.reference for v in ex.slave_variables(mass)}
     for name, value in ELEMENT.items():
         assert ex.integer_initial_value(tether, H.vr(name), value), name
+    for name, value in FLAGS.items():
+        assert ex.boolean_initial_value(tether, H.vr(name), value), name
     assert ex.real_initial_value(mass, mvr["position0"], bal + X0)
     for out_slave, out_vr, in_slave, in_vr in [(mass, mvr["position"], tether, H.vr("elongation")),
                                                (mass, mvr["velocity"], tether, H.vr("elongation_rate")),
@@ -139,6 +143,7 @@ def test_libcosim_element_rig_with_mass_reproduces_payload_rig(payload_reference
     assert series.start_time_series(mass, mvr["position"], CosimVariableType.REAL)
     assert ex.simulate_until(N_STEPS * h_ns), ex.status()
     assert last.last_integer_values(tether, [H.vr(n) for n in ELEMENT]) == list(ELEMENT.values())
+    assert last.last_boolean_values(tether, [H.vr(n) for n in FLAGS]) == list(FLAGS.values())
     times, steps, pos = series.time_series_real_samples(mass, mvr["position"], from_step=0,
                                                         sample_count=N_STEPS + 1)
     # libcosimpy trims the samples by counting step numbers equal to 0, so the last one is cut off:
@@ -163,11 +168,13 @@ def test_ecos_element_rig_with_mass_reproduces_payload_rig(payload_reference):
     ss.make_real_connection("mass::velocity", "tether::elongation_rate")
     ss.make_real_connection("tether::tension", "mass::tether_force")
     ss.add_parameter_set("initial", {f"tether::{k}": int(v) for k, v in ELEMENT.items()}
+                         | {f"tether::{k}": bool(v) for k, v in FLAGS.items()}
                          | {"mass::position0": float(bal + X0)})
     sim = EcosSimulation(structure=ss, step_size=H_STEP)
     try:
         assert sim.init(parameter_set="initial")
         assert [sim.get_integer(f"tether::{k}") for k in ELEMENT] == list(ELEMENT.values())
+        assert [sim.get_bool(f"tether::{k}") for k in FLAGS] == list(FLAGS.values())
         x = np.empty(N_STEPS + 1)
         x[0] = sim.get_real("mass::position")
         for k in range(1, N_STEPS + 1):
