@@ -233,3 +233,14 @@ def test_an_input_set_in_initialization_mode_after_a_read_is_used(kind):
     inst.check(inst.exit_init(), "fmi2ExitInitializationMode")
     assert inst.get("strain") == pytest.approx(load / ea, rel=1e-12)
     inst.free()
+
+
+def test_fmu_carries_its_icon():
+    """model.png at the root of the FMU (FMI 2.0, section 2.3): a PNG of icon size."""
+    import struct
+    import zipfile
+    with zipfile.ZipFile(H.require_fmu()) as z:
+        png = z.read("model.png")
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and png[12:16] == b"IHDR"
+    width, height = struct.unpack(">II", png[16:24])
+    assert 32 <= width <= 512 and width == height
