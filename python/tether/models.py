@@ -106,7 +106,7 @@ class ParamsError(ValueError):
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """The structural switches of one model (values as the FMU's enumeration names)."""
+    """The structural switches of one model (values named as in the FMU switches' descriptions)."""
 
     stiffness: str = "linear"      # linear | cubic
     damping: str = "viscous"       # viscous | displacement
