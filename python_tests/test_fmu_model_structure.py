@@ -120,8 +120,14 @@ def test_model_structure_lists_every_output_and_derivative():
     assert sorted(u.variable.name for u in md.outputs) == outputs
     assert "total_elongation" in outputs
     assert [u.variable.name for u in md.derivatives] == ["der(%s)" % s for s in H.STATE_NAMES]
-    initial = {u.variable.name for u in md.initialUnknowns}
-    assert set(outputs) | {"der(%s)" % s for s in H.STATE_NAMES} | set(H.STATE_NAMES) <= initial
+    # FMI 2.0: the outputs and states calculated at initialization, the derivatives and the
+    # calculated parameters, no more
+    initial = [u.variable.name for u in md.initialUnknowns]
+    calculated = [v.name for v in md.modelVariables if v.causality == "calculatedParameter"]
+    assert sorted(initial) == sorted(set(outputs) | set(H.STATE_NAMES) | {"der(%s)" % s for s in H.STATE_NAMES}
+                                     | set(calculated))
+    index = {v.name: i for i, v in enumerate(md.modelVariables)}
+    assert [index[n] for n in initial] == sorted(index[n] for n in initial)
 
 
 def test_every_dependency_the_fmu_shows_is_declared(observations):
