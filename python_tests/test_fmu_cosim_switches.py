@@ -73,7 +73,7 @@ def report(importer, diff, seconds):
           f"({seconds:.1f} s)")
 
 
-def test_fmpy_element_rig_with_mass_reproduces_payload_rig(payload_reference):
+def test_fmpy_element_rig_with_mass_reproduces_payload_rig(payload_reference, tmp_path):
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
@@ -82,7 +82,7 @@ def test_fmpy_element_rig_with_mass_reproduces_payload_rig(payload_reference):
     tether = H.cs(ELEMENT | FLAGS | dict(elongation=bal + X0))
     assert tether.get(*ELEMENT, *FLAGS) == list(ELEMENT.values()) + list(FLAGS.values())
     md = read_model_description(str(require_mass_fmu()))
-    mass = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(MASS_FMU)), modelIdentifier="PointMass",
+    mass = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(MASS_FMU), unzipdir=str(tmp_path)), modelIdentifier="PointMass",
                      instanceName="mass")
     mvr = {v.name: v.valueReference for v in md.modelVariables}
     mass.instantiate()
