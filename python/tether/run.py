@@ -63,6 +63,7 @@ class SimResult:
     parameters: dict               # every value set on the FMU (model parameters + trace values)
     warnings: list = field(default_factory=list)   # FMU warnings (logStatusWarning)
     periods: int | None = None     # periodic records: periods run before the returned record
+    final_strain: float = float("nan")   # the FMU's 'strain' (elongation / L0) at the last sample
 
     def rms_error(self, measured: np.ndarray) -> float:
         return float(np.sqrt(np.mean((self.predicted - measured) ** 2)))
@@ -475,6 +476,9 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
             for j in range(N // P):
                 tcur = _segment(run, tcur, h, in_values, in_ders, *addr, out[j * P:(j + 1) * P], label)
             periods = k
+        strain = c_double(float("nan"))
+        vr_strain = c_uint(desc.vr("strain"))
+        run.check(eng.get_real(run.comp, ctypes.addressof(vr_strain), 1, ctypes.addressof(strain)), "fmi2GetReal")
         warnings = notes + run.warnings()
         if periodic and warnings_extra:
             warnings += warnings_extra
@@ -485,4 +489,5 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
     all_values["L0"] = L0
     return SimResult(time=t.copy(), measured_column=trace.measured_column,
                      predicted=np.ascontiguousarray(out[:, 0]), tension=np.ascontiguousarray(out[:, 1]),
-                     model=spec, parameters=all_values, warnings=warnings, periods=periods)
+                     model=spec, parameters=all_values, warnings=warnings, periods=periods,
+                     final_strain=strain.value)
