@@ -14,10 +14,10 @@ import argparse
 import sys
 from typing import Sequence
 
-from . import demo, discover, fit, simulate, validate
+from . import demo, discover, fit, simulate, sweep, validate
 
 #: subcommand modules, in the order ``tether --help`` lists them
-COMMANDS = [simulate, validate, fit, discover, demo]
+COMMANDS = [simulate, validate, fit, discover, sweep, demo]
 
 USER_ERROR = 2      # bad input: trace, model string, parameter file, arguments
 RUN_ERROR = 1       # missing FMU, FMU failure

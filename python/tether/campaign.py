@@ -1,0 +1,143 @@
+"""Campaigns on Dask: the client and cluster that sweeps, validations and discoveries share.
+
+:func:`dask_client` opens a ``dask.distributed`` client: without an address, an embedded
+``LocalCluster`` with one worker process per core and one thread per worker (each task runs the FMU
+in its own process); with ``tcp://HOST:PORT``, the cluster a scheduler there runs.
+
+:func:`ship_fmu` hands the client's FMU to the workers (its bytes go to each worker once, through
+Dask), and :func:`use_fmu` on a worker points :mod:`tether.fmu` at that copy, so every worker runs
+the very binary the client would: rows equal a serial run's bit for bit whatever the cluster.
+
+:func:`run_tasks` submits one task per item and hands each result back as it finishes, with
+progress on stderr.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import logging
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable, Iterable, Iterator, Sequence
+
+#: --scheduler value that asks for the embedded local cluster explicitly
+LOCAL = "local"
+
+
+class CampaignError(RuntimeError):
+    """The cluster could not be reached or used; ``str(e)`` is one line naming the address."""
+
+
+def cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+@contextlib.contextmanager
+def dask_client(scheduler: str | None = None, n_workers: int | None = None,
+                progress: Callable[[str], None] | None = None) -> Iterator:
+    """A ``distributed.Client``: the embedded local cluster (``scheduler`` None or "local";
+    ``n_workers`` processes, default one per core, one thread each) or the scheduler at
+    ``scheduler`` (``tcp://HOST:PORT``). Closed on leaving, the embedded cluster with it."""
+    from dask.distributed import Client, LocalCluster
+
+    say = progress or (lambda _line: None)
+    if scheduler in (None, LOCAL):
+        n = n_workers or cores()
+        say(f"starting a local Dask cluster: {n} worker process{'es' if n > 1 else ''}, 1 thread each")
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                               silence_logs=logging.ERROR)
+        try:
+            client = Client(cluster)
+            try:
+                yield client
+            finally:
+                client.close()
+        finally:
+            cluster.close()
+        return
+    if "://" not in scheduler:
+        raise CampaignError(f"--scheduler {scheduler}: expected an address such as tcp://127.0.0.1:8786 "
+                            f"(or '{LOCAL}' for the embedded cluster)")
+    try:
+        client = Client(scheduler, timeout="10s")
+    except (OSError, TimeoutError) as e:
+        raise CampaignError(f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({e})") from None
+    try:
+        n = len(client.scheduler_info().get("workers", {}))
+        say(f"connected to the Dask scheduler at {scheduler}: {n} worker{'s' if n != 1 else ''}")
+        yield client
+    finally:
+        client.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# the FMU on the workers
+def fmu_bytes() -> tuple[str, bytes]:
+    """(sha256, bytes) of the FMU this process would run."""
+    from .fmu import fmu_path
+
+    data = fmu_path().read_bytes()
+    return hashlib.sha256(data).hexdigest(), data
+
+
+def ship_fmu(client):
+    """Hand the client's FMU to the cluster once; pass the returned future to :func:`use_fmu`."""
+    digest, data = fmu_bytes()
+    return client.scatter((digest, data), hash=False)
+
+
+_shipped: dict[str, str] = {}   # on a worker: sha256 -> the FMU file written there
+
+
+def use_fmu(shipped: tuple[str, bytes]) -> None:
+    """On a worker: run the shipped FMU (written once per process into a temporary directory)."""
+    digest, data = shipped
+    path = _shipped.get(digest)
+    if path is None:
+        folder = Path(tempfile.mkdtemp(prefix="tether-fmu-"))
+        target = folder / "KevlarTether.fmu"
+        target.write_bytes(data)
+        path = _shipped[digest] = str(target)
+    os.environ["KT_FMU"] = path
+
+
+# ---------------------------------------------------------------------------------------------
+def run_tasks(client, fn: Callable, items: Sequence, *args, label: str = "task",
+              progress: Callable[[str], None] | None = None) -> Iterable[tuple[int, object]]:
+    """Submit ``fn(item, *args)`` for each item; yield ``(index, result)`` as each finishes.
+
+    A task that raised re-raises here (the first one to finish so). Progress (done/total, rate,
+    time left) goes to ``progress`` at most once a second and at the end."""
+    from dask.distributed import as_completed
+
+    futures = [client.submit(fn, item, *args, pure=False) for item in items]
+    index = {f.key: i for i, f in enumerate(futures)}
+    total = len(futures)
+    t0 = last = time.monotonic()
+    done = 0
+    try:
+        for fut in as_completed(futures):
+            result = fut.result()
+            done += 1
+            now = time.monotonic()
+            if progress and (now - last >= 1.0 or done == total):
+                last = now
+                rate = done / max(now - t0, 1e-9)
+                left = (total - done) / rate if rate > 0 else float("nan")
+                progress(f"  {done}/{total} {label}s done, {rate:.1f}/s, about {left:.0f} s left")
+            yield index[fut.key], result
+    finally:
+        client.cancel([f for f in futures if not f.done()])
+
+
+def stderr_progress(line: str) -> None:
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
