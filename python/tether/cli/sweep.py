@@ -97,11 +97,11 @@ def run(args) -> int:
     except SweepError as e:
         raise CLIError(str(e)) from None
 
-    # one run here first: a parameter the FMU refuses fails now, in one line, before any output
-    first = dict(zip(plan.names, plan.runs[0]))
-    run_one(plan.trace, plan.model, plan.base, first)
-    t0 = time.perf_counter()                     # the second, with the FMU loaded: the time of a run
-    run_one(plan.trace, plan.model, plan.base, first)
+    # the first and the last run here first (a grid's low and high corners): a value the FMU
+    # refuses fails now, in one line, before any output; the second times a run
+    run_one(plan.trace, plan.model, plan.base, dict(zip(plan.names, plan.runs[0])))
+    t0 = time.perf_counter()
+    run_one(plan.trace, plan.model, plan.base, dict(zip(plan.names, plan.runs[-1])))
     per_run = time.perf_counter() - t0
 
     rows = RowsFile(out, plan.columns, plan.fingerprint())
