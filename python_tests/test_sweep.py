@@ -101,9 +101,9 @@ class DaskCluster:
                 p.wait()
 
 
-@pytest.fixture
-def dask_cluster(tmp_path):
-    cluster = DaskCluster(tmp_path)
+@pytest.fixture(scope="module")
+def dask_cluster(tmp_path_factory):
+    cluster = DaskCluster(tmp_path_factory.mktemp("dask"))
     try:
         yield cluster.start(workers=2)
     finally:
@@ -135,6 +135,28 @@ def test_rows_on_a_scheduler_and_two_workers_equal_the_embedded_and_a_serial_run
     assert len(paths) == 2
     for path in paths.values():
         assert path and Path(path).read_bytes() == data
+
+
+def test_validate_and_discover_each_run_on_the_scheduler(dask_cluster, tmp_path):
+    """validate --scheduler: the same numbers as in this process; discover --each: one discovery
+    per record on the workers, each naming the law its generator used (the cubic's nonlinear
+    stiffness) within the noise, and the summary table."""
+    traces = [REF / "stiffness_8m", REF / "stiffness_12m"]
+    tether("validate", *traces, "--scheduler", dask_cluster, "--report", tmp_path / "cluster")
+    tether("validate", *traces, "--report", tmp_path / "serial")
+    rows = [json.loads((tmp_path / d / "validation.json").read_text())["traces"] for d in ("cluster", "serial")]
+    assert rows[0] == rows[1] and len(rows[0]) == 2
+
+    out = tmp_path / "each"
+    p = tether("discover", "--each", *traces, "--out-dir", out, "--scheduler", dask_cluster)
+    summary = np.genfromtxt(out / "summary.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    assert [str(n) for n in summary["trace"]] == ["stiffness_8m", "stiffness_12m"]
+    for tr in traces:
+        doc = json.loads((out / f"{tr.name}.json").read_text())
+        assert doc["added_effects"] == ["nonlinear_stiffness"] and doc["rmse_final_over_noise"] < 1.2
+        assert tr.name in p.stdout
+    p = tether("discover", "--each", traces[0], "--json", tmp_path / "x.json", check=False)
+    assert p.returncode == 2 and "--out-dir" in p.stderr
 
 
 # ---------------------------------------------------------------------------------------------

@@ -141,3 +141,28 @@ def run_tasks(client, fn: Callable, items: Sequence, *args, label: str = "task",
 def stderr_progress(line: str) -> None:
     sys.stderr.write(line + "\n")
     sys.stderr.flush()
+
+
+def call_with_fmu(call: tuple, shipped):
+    """A Dask task: ``fn(*args)`` for ``call`` = (fn, args) on a worker, with the client's FMU
+    (see :func:`ship_fmu`)."""
+    fn, args = call
+    use_fmu(shipped)
+    return fn(*args)
+
+
+def map_on_cluster(scheduler: str | None, fn: Callable, arg_tuples: Sequence[tuple], label: str = "task",
+                   progress: Callable[[str], None] | None = stderr_progress,
+                   each: Callable[[int, object], None] | None = None) -> list:
+    """``[fn(*args) for args in arg_tuples]``, each call a task on the cluster at ``scheduler``
+    (None or "local": the embedded one), in the order given; ``each(index, result)`` as each
+    finishes."""
+    results: list = [None] * len(arg_tuples)
+    with dask_client(scheduler, progress=progress) as client:
+        fmu = ship_fmu(client)
+        for i, r in run_tasks(client, call_with_fmu, [(fn, a) for a in arg_tuples], fmu, label=label,
+                              progress=progress):
+            results[i] = r
+            if each is not None:
+                each(i, r)
+    return results

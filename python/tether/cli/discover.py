@@ -26,15 +26,24 @@ flagged windows, and the gap shrinking step by step.
 --budget SECONDS bounds the run (default 900 s; long records at high rates with several effects
 can need more): a step whose fits are not all done when it is spent adds nothing.
 
+--each TRACE... --out-dir DIR runs one independent discovery per record, each a task on Dask (a
+local cluster of one worker process per core, or --scheduler tcp://HOST:PORT): DIR/NAME.json per
+record as it finishes, then DIR/summary.csv and DIR/summary.json, one row per record.
+
 Exit status: 0 done; 2 bad input; 1 engine or FMU failure.
 """
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("trace", metavar="TRACE", help="NAME.csv, NAME.json or NAME")
+    parser.add_argument("trace", metavar="TRACE", nargs="?", help="NAME.csv, NAME.json or NAME")
     parser.add_argument("--start", metavar="MODEL", default="linear",
                         help="model to start from (default: linear, the trace format's baseline)")
-    parser.add_argument("--json", metavar="OUT.json", required=True, help="discovery record to write")
+    parser.add_argument("--json", metavar="OUT.json", help="discovery record to write (required with TRACE)")
+    parser.add_argument("--each", metavar="TRACE", nargs="+",
+                        help="one independent discovery per record, each a task on Dask; with --out-dir")
+    parser.add_argument("--out-dir", metavar="DIR", help="--each: DIR/NAME.json per record, DIR/summary.csv")
+    from .sweep import add_scheduler_argument
+    add_scheduler_argument(parser)
     parser.add_argument("--report", metavar="DIR", help="write DIR/index.html with the story in plots")
     parser.add_argument("--budget", metavar="SECONDS", type=_seconds, default=None,
                         help="bound the run (default 900 s): a step not judged to the end when it is spent "
@@ -62,6 +71,11 @@ def run(args) -> int:
     from . import CLIError, RUN_ERROR
     from .common import check_output_path
 
+    if args.each:
+        from .discover_each import run_each
+        return run_each(args)
+    if args.trace is None or args.json is None:
+        raise CLIError("give TRACE and --json OUT.json (or --each TRACE... --out-dir DIR)")
     trace = read_trace(args.trace)
     parse_model(args.start, trace.experiment)                # a bad model string fails before any fit
     out = Path(args.json)

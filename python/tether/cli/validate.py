@@ -32,6 +32,8 @@ def add_arguments(parser) -> None:
     add_model_arguments(parser)
     parser.add_argument("--report", metavar="DIR", default="reports/validate",
                         help="report directory (default: reports/validate)")
+    from .sweep import add_scheduler_argument
+    add_scheduler_argument(parser)
 
 
 def run(args) -> int:
@@ -59,11 +61,14 @@ def run(args) -> int:
         raise CLIError(f"--report {report}: exists and is not a directory")
     rows, images = [], []
     t_all = time.time()
+    if args.scheduler:                               # every trace a task on the cluster
+        from ..campaign import map_on_cluster
+        done = map_on_cluster(args.scheduler, validate_trace, [(tr, model, params) for tr in traces], label="trace")
     for i, tr in enumerate(traces, 1):
         t0 = time.time()
         sys.stderr.write(f"[{i}/{len(traces)}] {tr.stem.name} ... ")
         sys.stderr.flush()
-        v = validate_trace(tr, model, params)
+        v = done[i - 1] if args.scheduler else validate_trace(tr, model, params)
         row = v.as_dict()
         rows.append(row)
         img = f"plots/{tr.stem.name}.png"

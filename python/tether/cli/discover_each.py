@@ -1,0 +1,95 @@
+"""tether discover --each TRACE... --out-dir DIR: one independent discovery per record, each a
+task on Dask (the embedded local cluster, or --scheduler), with a summary table.
+
+DIR/NAME.json is each record's discovery (as ``tether discover --json`` writes it), written as the
+record finishes; DIR/summary.csv and DIR/summary.json hold one row per record: the effects named,
+the errors before and after in units of the noise, and why the search stopped.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+SUMMARY_COLUMNS = ("trace", "experiment", "added_effects", "final_model", "noise_estimate", "rmse_initial",
+                   "rmse_final", "final_over_noise", "stop_reason")
+
+
+def discover_record(trace, start: str, budget: float | None) -> dict:
+    """One record's discovery document (runs on a worker)."""
+    from ..discover import discover, discovery_document
+
+    d = discover(trace, start=start, **({} if budget is None else {"budget": budget}))
+    return discovery_document(d)
+
+
+def summary_row(name: str, experiment: str, doc: dict) -> dict:
+    return {"trace": name, "experiment": experiment, "added_effects": "+".join(doc.get("added_effects") or []),
+            "final_model": doc.get("final_model", ""), "noise_estimate": doc.get("noise_estimate"),
+            "rmse_initial": doc.get("rmse_initial"), "rmse_final": doc.get("rmse_final"),
+            "final_over_noise": doc.get("rmse_final_over_noise"), "stop_reason": doc.get("stop_reason", "")}
+
+
+def run_each(args) -> int:
+    from ..atomic import write_with
+    from ..campaign import CampaignError, map_on_cluster
+    from ..models import parse_model
+    from ..report import write_json_atomic
+    from ..traces import read_trace
+    from . import CLIError, RUN_ERROR
+
+    if args.trace is not None or args.json is not None:
+        raise CLIError("--each: give the records after --each and --out-dir DIR, not TRACE or --json")
+    if not args.out_dir:
+        raise CLIError("--each: give --out-dir DIR for the records' discoveries and the summary")
+    traces = [read_trace(p) for p in args.each]              # read (and check) every record first
+    names = [t.name for t in traces]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise CLIError(f"--each: two records named {dup[0]}; their DIR/{dup[0]}.json would collide")
+    for t in traces:
+        parse_model(args.start, t.experiment)
+    out = Path(args.out_dir)
+    if out.exists() and not out.is_dir():
+        raise CLIError(f"--out-dir {out}: exists and is not a directory")
+
+    def finished(i: int, doc: dict) -> None:
+        write_json_atomic(out / f"{names[i]}.json", doc)
+
+    try:
+        docs = map_on_cluster(args.scheduler, discover_record, [(t, args.start, args.budget) for t in traces],
+                              label="record", each=finished)
+    except CampaignError as e:
+        raise CLIError(str(e), RUN_ERROR) from None
+    rows = [summary_row(t.name, t.experiment, d) for t, d in zip(traces, docs)]
+    write_json_atomic(out / "summary.json", {"format": "tether-discover-each/1", "records": rows})
+
+    def fill(f):
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(SUMMARY_COLUMNS)
+        w.writerows([[_cell(r[c]) for c in SUMMARY_COLUMNS] for r in rows])
+
+    write_with(out / "summary.csv", fill)
+    print(summary_table(rows))
+    print(f"records: {out}/NAME.json; summary: {out / 'summary.csv'}")
+    return 0
+
+
+def _cell(v) -> str:
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ""
+    return "" if v is None else str(v)
+
+
+def summary_table(rows) -> str:
+    head = ["trace", "effects named", "start x noise", "final x noise", "stopped"]
+    body = []
+    for r in rows:
+        n = r["noise_estimate"] or float("nan")
+        body.append([r["trace"], r["added_effects"] or "(none)", f"{(r['rmse_initial'] or float('nan')) / n:.2f}",
+                     f"{r['final_over_noise'] or float('nan'):.2f}", str(r["stop_reason"])[:60]])
+    w = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(head)]
+    fmt = "  ".join("{:<%d}" % k for k in w)
+    return "\n".join([fmt.format(*head).rstrip(), fmt.format(*("-" * k for k in w)).rstrip()]
+                     + [fmt.format(*b).rstrip() for b in body])
