@@ -306,3 +306,14 @@ def test_samples_from_a_full_model_fit_spread_as_its_errors_and_the_band_covers_
     for f in ("index.html", "band.png", "distributions.png", "band.csv"):
         assert (report / f).is_file()
     assert len(list((report / "series").glob("run_*.parquet"))) == 100
+
+
+def test_an_unreachable_scheduler_is_one_line_and_leaves_the_old_file(tmp_path):
+    out = tmp_path / "rows.csv"
+    out.write_text("an earlier sweep\n")
+    p = tether("sweep", TRACE, "--model", "full", "--vary", "a1=900:1500:2", "--out", out,
+               "--scheduler", "tcp://127.0.0.1:1", check=False)
+    assert p.returncode == 1 and "tether: error: --scheduler tcp://127.0.0.1:1: cannot reach" in p.stderr
+    assert out.read_text() == "an earlier sweep\n" and not (tmp_path / "rows.csv.sweep.json").exists()
+    p = tether("validate", TRACE, "--scheduler", "nowhere", check=False)
+    assert p.returncode == 2 and "--scheduler" in p.stderr

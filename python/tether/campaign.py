@@ -40,6 +40,14 @@ def cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def check_address(scheduler: str) -> str:
+    """A scheduler's address (``PROTOCOL://HOST:PORT``) or "local"; CampaignError otherwise."""
+    if scheduler != LOCAL and "://" not in scheduler:
+        raise CampaignError(f"--scheduler {scheduler}: expected an address such as tcp://127.0.0.1:8786 "
+                            f"(or '{LOCAL}' for the embedded cluster)")
+    return scheduler
+
+
 @contextlib.contextmanager
 def dask_client(scheduler: str | None = None, n_workers: int | None = None,
                 progress: Callable[[str], None] | None = None) -> Iterator:
@@ -63,9 +71,7 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
         finally:
             cluster.close()
         return
-    if "://" not in scheduler:
-        raise CampaignError(f"--scheduler {scheduler}: expected an address such as tcp://127.0.0.1:8786 "
-                            f"(or '{LOCAL}' for the embedded cluster)")
+    check_address(scheduler)
     try:
         client = Client(scheduler, timeout="10s")
     except (OSError, TimeoutError) as e:

@@ -33,11 +33,11 @@ def summary_row(name: str, experiment: str, doc: dict) -> dict:
 
 def run_each(args) -> int:
     from ..atomic import write_with
-    from ..campaign import CampaignError, map_on_cluster
     from ..models import parse_model
     from ..report import write_json_atomic
     from ..traces import read_trace
-    from . import CLIError, RUN_ERROR
+    from . import CLIError
+    from .sweep import cluster_map
 
     if args.trace is not None or args.json is not None:
         raise CLIError("--each: give the records after --each and --out-dir DIR, not TRACE or --json")
@@ -57,11 +57,8 @@ def run_each(args) -> int:
     def finished(i: int, doc: dict) -> None:
         write_json_atomic(out / f"{names[i]}.json", doc)
 
-    try:
-        docs = map_on_cluster(args.scheduler, discover_record, [(t, args.start, args.budget) for t in traces],
-                              label="record", each=finished)
-    except CampaignError as e:
-        raise CLIError(str(e), RUN_ERROR) from None
+    docs = cluster_map(args.scheduler, discover_record, [(t, args.start, args.budget) for t in traces], "record",
+                       each=finished)
     rows = [summary_row(t.name, t.experiment, d) for t, d in zip(traces, docs)]
     write_json_atomic(out / "summary.json", {"format": "tether-discover-each/1", "records": rows})
 

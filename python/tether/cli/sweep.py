@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
@@ -57,18 +56,36 @@ def add_arguments(parser) -> None:
 
 def add_scheduler_argument(parser) -> None:
     """--scheduler, shared by sweep, validate and discover --each."""
-    parser.add_argument("--scheduler", metavar="ADDRESS",
+    parser.add_argument("--scheduler", metavar="ADDRESS", type=_address,
                         help="Dask scheduler to run on, tcp://HOST:PORT ('local': a local cluster of one "
                              "worker process per core)")
 
 
-def progress(line: str) -> None:
-    sys.stderr.write(line + "\n")
-    sys.stderr.flush()
+def _address(text: str) -> str:
+    import argparse
+
+    from ..campaign import CampaignError, check_address
+
+    try:
+        return check_address(text)
+    except CampaignError as e:
+        raise argparse.ArgumentTypeError(str(e).split(": ", 1)[1]) from None
+
+
+def cluster_map(scheduler, fn, arg_tuples, label: str, each=None) -> list:
+    """:func:`tether.campaign.map_on_cluster` for a subcommand: a cluster that cannot be reached
+    is one line and status 1."""
+    from ..campaign import CampaignError, map_on_cluster
+    from . import CLIError, RUN_ERROR
+
+    try:
+        return map_on_cluster(scheduler, fn, arg_tuples, label=label, each=each)
+    except CampaignError as e:
+        raise CLIError(str(e), RUN_ERROR) from None
 
 
 def run(args) -> int:
-    from ..campaign import CampaignError, dask_client
+    from ..campaign import CampaignError, dask_client, stderr_progress
     from ..sweep import SweepError, execute, grid_plan, run_one, sample_plan
     from ..sweep_output import RowsFile, SweepFileError
     from ..traces import read_trace
@@ -106,7 +123,7 @@ def run(args) -> int:
 
     rows = RowsFile(out, plan.columns, plan.fingerprint())
     try:
-        done = rows.resume() if args.resume else (rows.start() or set())
+        done = rows.resume() if args.resume else set()
     except SweepFileError as e:
         raise CLIError(str(e)) from None
     if series is not None:
@@ -116,13 +133,15 @@ def run(args) -> int:
     else:
         redo = set()
     todo = [i for i in range(len(plan.runs)) if i not in done or i in redo]
-    progress(f"sweep of {trace.name} with {plan.model}: {len(plan.runs)} runs of {', '.join(plan.names)}"
+    stderr_progress(f"sweep of {trace.name} with {plan.model}: {len(plan.runs)} runs of {', '.join(plan.names)}"
              + (f"; {len(done)} done before, {len(todo)} to run" if args.resume else ""))
     t_all = time.perf_counter()
     try:
         if todo:
-            with dask_client(args.scheduler, args.workers, progress) as client:
-                execute(plan, client, rows, todo, series, per_run, progress)
+            with dask_client(args.scheduler, args.workers, stderr_progress) as client:
+                if not args.resume:
+                    rows.start()                 # OUT is replaced only once the cluster is there
+                execute(plan, client, rows, todo, series, per_run, stderr_progress)
     except CampaignError as e:
         rows.close()
         raise CLIError(str(e), RUN_ERROR) from None
@@ -130,7 +149,7 @@ def run(args) -> int:
         rows.close()
         raise
     rows.finish()
-    progress(f"{len(todo)} runs in {time.perf_counter() - t_all:.1f} s")
+    stderr_progress(f"{len(todo)} runs in {time.perf_counter() - t_all:.1f} s")
     print(f"rows: {out} ({len(plan.runs)} runs)")
     if report is not None:
         write_report(plan, pf, series, report, out)

@@ -62,8 +62,8 @@ def run(args) -> int:
     rows, images = [], []
     t_all = time.time()
     if args.scheduler:                               # every trace a task on the cluster
-        from ..campaign import map_on_cluster
-        done = map_on_cluster(args.scheduler, validate_trace, [(tr, model, params) for tr in traces], label="trace")
+        from .sweep import cluster_map
+        done = cluster_map(args.scheduler, validate_trace, [(tr, model, params) for tr in traces], "trace")
     for i, tr in enumerate(traces, 1):
         t0 = time.time()
         sys.stderr.write(f"[{i}/{len(traces)}] {tr.stem.name} ... ")

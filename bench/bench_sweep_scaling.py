@@ -1,0 +1,103 @@
+"""The issue-28 sweep (64 full-model runs, --vary a1=900:1500:8 --vary c0=1:5:8, on
+reference_results/freevib_full_0p1184) on a local Dask cluster of one worker and of two: prints the
+times, their ratio (target >= 1.5 x on two cores), and the scheduler's overhead per task, with a
+machine yardstick measured in the same run (one simulation of the sweep's first run, best of 5, and
+the 64 runs one after another in this process), so that figures from a loaded or slower machine can
+be compared as ratios.
+
+Each timing starts once the cluster is up and its workers hold the FMU (a first, untimed sweep
+warms them), and ends when the last row is written: what a sweep costs beyond starting Dask.
+
+    python bench/bench_sweep_scaling.py [--grid 8] [--repeat 3] [--tasks 2000]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "python"))
+
+
+def _noop(x):
+    return x
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--grid", type=int, default=8, help="points per axis (default 8: 64 runs)")
+    ap.add_argument("--repeat", type=int, default=3, help="timed sweeps per cluster size (the best is kept)")
+    ap.add_argument("--tasks", type=int, default=2000, help="empty tasks for the overhead per task")
+    args = ap.parse_args()
+
+    from tether.campaign import dask_client
+    from tether.sweep import execute, grid_plan, run_one
+    from tether.sweep_output import RowsFile
+    from tether.traces import read_trace
+
+    trace = read_trace(REPO / "reference_results" / "freevib_full_0p1184")
+    g = args.grid
+    plan = grid_plan(trace, "full", {}, [f"a1=900:1500:{g}", f"c0=1:5:{g}"])
+    n = len(plan.runs)
+
+    def one(i):
+        return run_one(plan.trace, plan.model, plan.base, dict(zip(plan.names, plan.runs[i])))
+
+    one(0)
+    best = float("inf")
+    for _ in range(5):
+        t0 = time.perf_counter()
+        one(0)
+        best = min(best, time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    for i in range(n):
+        one(i)
+    serial = time.perf_counter() - t0
+    print(f"machine yardstick: one run {1e3 * best:.1f} ms (best of 5); {n} runs one after another in this "
+          f"process {serial:.2f} s; load average {os.getloadavg()[0]:.2f}; {os.cpu_count()} cores")
+
+    trials: dict = {1: [], 2: []}
+    overhead = {}
+    with tempfile.TemporaryDirectory() as tmp, dask_client(None, 1) as one_worker, \
+            dask_client(None, 2) as two_workers:
+        clients = {1: one_worker, 2: two_workers}
+
+        def sweep(workers: int, k: int) -> float:
+            rows = RowsFile(Path(tmp) / f"rows_{workers}_{k}.csv", plan.columns, plan.fingerprint())
+            rows.start()
+            t0 = time.perf_counter()
+            execute(plan, clients[workers], rows, list(range(n)), seconds_per_run=best)
+            dt = time.perf_counter() - t0
+            rows.finish()
+            return dt
+
+        for workers in (1, 2):                                  # warm the workers, untimed
+            sweep(workers, 0)
+        for k in range(1, args.repeat + 1):                     # interleaved: a load that changes hits both
+            for workers in (1, 2):
+                trials[workers].append(sweep(workers, k))
+        for workers, client in clients.items():
+            # the scheduler's cost per task: empty tasks, submitted at once, waited for
+            client.gather(client.map(_noop, range(200), pure=False))
+            t0 = time.perf_counter()
+            client.gather(client.map(_noop, range(args.tasks), pure=False))
+            overhead[workers] = (time.perf_counter() - t0) / args.tasks
+        files = {p.read_bytes() for p in Path(tmp).glob("rows_*.csv")}
+    times = {w: min(t) for w, t in trials.items()}
+    for w in (1, 2):
+        print(f"{w} worker{'s' if w > 1 else ' '}: sweep of {n} runs {times[w]:.2f} s (best of {args.repeat}: "
+              f"{', '.join(f'{t:.2f}' for t in trials[w])}); {1e3 * overhead[w]:.2f} ms per empty task "
+              f"({args.tasks} tasks)")
+    ratio = times[1] / times[2]
+    print(f"speed-up from one worker to two: {ratio:.2f} x (target >= 1.5 x); "
+          f"one worker against the serial loop: {times[1] / serial:.2f} x its time")
+    print(f"every sweep wrote the same file: {len(files) == 1}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
