@@ -186,11 +186,11 @@ def test_a_killed_sweep_resumed_gives_the_file_of_one_never_killed(embedded_rows
                "--resume")
     assert f"{64 - len(partial)} to run" in p.stderr or f"{len(partial)} done before" in p.stderr, p.stderr
     assert out.read_bytes() == embedded_rows.read_bytes()
-    assert not (tmp_path / "rows.csv.sweep.json").exists()
+    assert json.loads((tmp_path / "rows.csv.sweep.json").read_text())["finished"] is True
     assert len(list(series.glob("run_*.parquet"))) == 64
-    # a resumed finished sweep has nothing to resume
-    p = tether("sweep", TRACE, "--model", "full", *GRID, "--out", out, "--resume", check=False)
-    assert p.returncode == 2 and "nothing to resume" in p.stderr
+    # a finished sweep resumed runs nothing and leaves its file as it was
+    p = tether("sweep", TRACE, "--model", "full", *GRID, "--out", out, "--resume")
+    assert "64 done before, 0 to run" in p.stderr and out.read_bytes() == embedded_rows.read_bytes()
 
 
 def test_resume_refuses_a_different_sweep_and_names_what_differs(tmp_path):

@@ -3,12 +3,12 @@ on (``OUT.sweep.json`` beside it), and each run's time series (Parquet).
 
 While a sweep runs, OUT holds the header and the rows finished so far in the order they finished,
 each written whole with one write and flushed. When every run is in, OUT is rewritten in run order
-(atomically) and the state file removed: the file is then the same byte for byte however the
+(atomically) and the state file marked finished: OUT is then the same byte for byte however the
 sweep was split, scheduled, killed and resumed.
 
 ``--resume`` reads OUT's complete lines (a line cut by a kill is dropped), checks that the sweep is
 the same one (trace, model, parameters, columns and runs, against the state file) and runs only
-the missing rows.
+the missing rows (none for a finished sweep: its report can be written again so).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ class RowsFile:
 
     def start(self) -> None:
         """A new sweep: write the state file, then OUT with its header (an old OUT is replaced)."""
-        write_text(state_path(self.out), json.dumps({"format": STATE_FORMAT, **self.fingerprint}, indent=1) + "\n")
+        self._write_state(finished=False)
         replace_with(self.out, lambda tmp: Path(tmp).write_text(self.header, encoding="utf-8"), suffix=".csv")
         self._f = open(self.out, "a", encoding="utf-8", newline="\n")
 
@@ -55,8 +55,8 @@ class RowsFile:
         if not self.out.is_file():
             raise SweepFileError(f"--resume: {self.out} does not exist; nothing to resume (run without --resume)")
         if not sp.is_file():
-            raise SweepFileError(f"--resume: {sp} does not exist: {self.out} is a finished sweep or not a sweep's "
-                                 "output; nothing to resume")
+            raise SweepFileError(f"--resume: {sp} does not exist: {self.out} is not a sweep's output; nothing "
+                                 "to resume")
         try:
             state = json.loads(sp.read_text(encoding="utf-8"))
         except (OSError, ValueError) as e:
@@ -89,12 +89,16 @@ class RowsFile:
         self._f.flush()
 
     def finish(self) -> None:
-        """All runs in: OUT in run order, atomically; the state file removed."""
+        """All runs in: OUT in run order, atomically; the state file marked finished."""
         self.close()
         ordered = "".join(self.rows[i] for i in sorted(self.rows))
         replace_with(self.out, lambda tmp: Path(tmp).write_text(self.header + ordered, encoding="utf-8"),
                      suffix=".csv")
-        state_path(self.out).unlink(missing_ok=True)
+        self._write_state(finished=True)
+
+    def _write_state(self, finished: bool) -> None:
+        doc = {"format": STATE_FORMAT, "finished": finished, **self.fingerprint}
+        write_text(state_path(self.out), json.dumps(doc, indent=1) + "\n")
 
     def close(self) -> None:
         if self._f is not None:

@@ -69,18 +69,23 @@ def write_sweep_report(folder: Path, trace, Y: np.ndarray, sigma: float, columns
     unit = UNITS.get(col, "")
 
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(10, 4.5))
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(10, 7), sharex=True, height_ratios=[3, 2])
     t = trace.time
     ax.fill_between(t, band[0], band[-1], color="tab:blue", alpha=0.3, lw=0, label="5-95 % band")
     ax.plot(t, band[1], color="tab:blue", lw=1, label="median")
+    # the band about its median: on the scale of the noise, where the record's own scale hides it
+    ax2.fill_between(t, band[0] - band[1], band[-1] - band[1], color="tab:blue", alpha=0.3, lw=0)
+    ax2.axhline(0.0, color="tab:blue", lw=1)
     if measured is not None:
         ax.plot(t, measured, ".", ms=1.5, color="k", label="measured")
-    ax.set_xlabel("time [s]")
+        ax2.plot(t, measured - band[1], ".", ms=1.5, color="k")
+    ax2.set_xlabel("time [s]")
     ax.set_ylabel(f"{col} [{unit}]")
+    ax2.set_ylabel(f"minus the median [{unit}]")
     ax.legend(loc="upper right")
     ax.set_title(f"{trace.name}: prediction band of {Y.shape[0]} runs" +
-                 (f", noise {sigma:.3g} {unit}" if sigma > 0 else "") +
-                 (f"; {100 * cov:.1f} % of the measured samples inside" if cov is not None else ""))
+                 (f" (noise {sigma:.3g} {unit})" if sigma > 0 else "") +
+                 (f"; {100 * cov:.1f} % of the samples inside" if cov is not None else ""), fontsize=10)
     fig.tight_layout()
     save_figure_atomic(fig, folder / "band.png")
     plt.close(fig)

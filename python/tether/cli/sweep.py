@@ -19,8 +19,9 @@ trace's), and force_scale or load_scale, a factor on the trace's input.
 OUT.csv gets one row per run: run, the varied values, then max_tension, min_tension,
 peak_displacement (or peak_elongation; largest magnitude), rms_displacement (or rms_elongation),
 slack_time (seconds slack), final_elongation, rmse (against the measured column). Rows are written
-as runs finish; when all are in, OUT.csv is put in run order. A killed sweep goes on with --resume
-(same arguments) without redoing its finished rows, and ends with the same file.
+as runs finish; when all are in, OUT.csv is put in run order. OUT.csv.sweep.json beside it records
+what the sweep is: a killed sweep goes on with --resume (same arguments) without redoing its
+finished rows, and ends with the same file (a finished one runs nothing: its --report is redone).
 --series DIR writes every run's time series (DIR/run_NNNNNN.parquet: time, the measured column,
 tension). --report DIR writes DIR/index.html: the prediction band (5/50/95 %) against the
 measurement (with --samples, each run carries the fit's noise) and the distributions of the outputs;
