@@ -60,7 +60,8 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
     if scheduler in (None, LOCAL):
         n = n_workers or cores()
         say(f"starting a local Dask cluster: {n} worker process{'es' if n > 1 else ''}, 1 thread each")
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+        # its HTTP endpoints on a free port: the fixed default collides with any other cluster here
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR)
         try:
             client = Client(cluster)
