@@ -34,6 +34,8 @@ def main() -> int:
     ap.add_argument("--tasks", type=int, default=2000, help="empty tasks for the overhead per task")
     args = ap.parse_args()
 
+    import psutil
+
     from tether.campaign import dask_client
     from tether.sweep import execute, grid_plan, run_one
     from tether.sweep_output import RowsFile
@@ -81,17 +83,23 @@ def main() -> int:
             for workers in (1, 2):
                 trials[workers].append(sweep(workers, k))
         for workers, client in clients.items():
-            # the scheduler's cost per task: empty tasks, submitted at once, waited for
+            # the cost per task: empty tasks, submitted at once, waited for; wall time, and the CPU
+            # time of this process (client and scheduler) and of the workers, which a loaded
+            # machine does not inflate as it does the wall time
             client.gather(client.map(_noop, range(200), pure=False))
-            t0 = time.perf_counter()
+            procs = [psutil.Process(pid) for pid in client.run(os.getpid).values()]
+            w0 = sum(sum(p.cpu_times()[:2]) for p in procs)
+            c0, t0 = time.process_time(), time.perf_counter()
             client.gather(client.map(_noop, range(args.tasks), pure=False))
-            overhead[workers] = (time.perf_counter() - t0) / args.tasks
+            overhead[workers] = ((time.perf_counter() - t0) / args.tasks, (time.process_time() - c0) / args.tasks,
+                                 (sum(sum(p.cpu_times()[:2]) for p in procs) - w0) / args.tasks)
         files = {p.read_bytes() for p in Path(tmp).glob("rows_*.csv")}
     times = {w: min(t) for w, t in trials.items()}
     for w in (1, 2):
+        wall, cpu_here, cpu_workers = overhead[w]
         print(f"{w} worker{'s' if w > 1 else ' '}: sweep of {n} runs {times[w]:.2f} s (best of {args.repeat}: "
-              f"{', '.join(f'{t:.2f}' for t in trials[w])}); {1e3 * overhead[w]:.2f} ms per empty task "
-              f"({args.tasks} tasks)")
+              f"{', '.join(f'{t:.2f}' for t in trials[w])}); per empty task ({args.tasks}): {1e3 * wall:.2f} ms "
+              f"wall, CPU {1e3 * cpu_here:.2f} ms client + scheduler, {1e3 * cpu_workers:.2f} ms workers")
     ratio = times[1] / times[2]
     print(f"speed-up from one worker to two: {ratio:.2f} x (target >= 1.5 x); "
           f"one worker against the serial loop: {times[1] / serial:.2f} x its time")
