@@ -41,6 +41,8 @@ def run_each(args) -> int:
 
     if args.trace is not None or args.json is not None:
         raise CLIError("--each: give the records after --each and --out-dir DIR, not TRACE or --json")
+    if args.report is not None:
+        raise CLIError("--each: --report is for one record; each record's discovery is in DIR/NAME.json")
     if not args.out_dir:
         raise CLIError("--each: give --out-dir DIR for the records' discoveries and the summary")
     traces = [read_trace(p) for p in args.each]              # read (and check) every record first
