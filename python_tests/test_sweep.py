@@ -261,6 +261,21 @@ def test_outputs_match_the_closed_forms_of_a_linear_tether(write_trace):
     assert expected > 2.0 and abs(row[4] - expected) <= 2 * (t[1] - t[0]) + 1e-12
 
 
+def test_the_load_scale_scales_a_linear_load_test():
+    """Load rig, linear law: tension = load, elongation = load L0 / EA, for the scaled load."""
+    from tether.sweep import grid_plan, run_one
+    from tether.traces import read_trace
+
+    tr = read_trace(REF / "stiffness_8m")
+    EA = 5e4
+    plan = grid_plan(tr, "linear", {"EA": EA}, ["load_scale=0.5:2:2", "L0=4:8:2"])
+    assert plan.names == ["load_scale", "L0"] and len(plan.runs) == 4
+    for scale, L0 in plan.runs:
+        row, _ = run_one(tr, plan.model, plan.base, {"load_scale": scale, "L0": L0})
+        assert row[0] == pytest.approx(scale * tr.input.max(), rel=1e-12)
+        assert row[2] == pytest.approx(scale * tr.input.max() * L0 / EA, rel=1e-9)
+
+
 # ---------------------------------------------------------------------------------------------
 def test_draws_keep_inside_bounds_and_repeat_with_the_seed():
     from tether.sweep import draw_samples
