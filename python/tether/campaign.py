@@ -132,7 +132,7 @@ def run_tasks(client, fn: Callable, items: Sequence, *args, label: str = "task",
     done = 0
     try:
         for fut in as_completed(futures):
-            result = fut.result()
+            result = _result(fut, f"{label} {index[fut.key] + 1} of {total}")
             done += 1
             now = time.monotonic()
             if progress and (now - last >= 1.0 or done == total):
@@ -143,6 +143,17 @@ def run_tasks(client, fn: Callable, items: Sequence, *args, label: str = "task",
             yield index[fut.key], result
     finally:
         client.cancel([f for f in futures if not f.done()])
+
+
+def _result(future, what: str):
+    """A task's result; its own errors (a simulation that failed, ...) as they are, the cluster's
+    (a worker lost, a connection closed) as one CampaignError line."""
+    try:
+        return future.result()
+    except Exception as e:  # noqa: BLE001 - sorted below
+        if type(e).__module__.split(".")[0] == "tether":
+            raise
+        raise CampaignError(f"{what} failed on the cluster ({type(e).__name__}: {e})") from e
 
 
 def stderr_progress(line: str) -> None:

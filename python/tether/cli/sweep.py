@@ -87,7 +87,7 @@ def cluster_map(scheduler, fn, arg_tuples, label: str, each=None) -> list:
 
 def run(args) -> int:
     from ..campaign import CampaignError, dask_client, stderr_progress
-    from ..sweep import SweepError, execute, grid_plan, run_one, sample_plan
+    from ..sweep import execute
     from ..sweep_output import RowsFile, SweepFileError
     from ..traces import read_trace
     from . import CLIError, RUN_ERROR
@@ -96,46 +96,20 @@ def run(args) -> int:
     trace = read_trace(args.trace)
     spec, base, pf = resolve_model(args, trace)
     out = check_output_path(args.out, trace)
-    series = Path(args.series) if args.series else None
-    report = Path(args.report) if args.report else None
-    for opt, folder in (("--series", series), ("--report", report)):
-        if folder is not None and folder.exists() and not folder.is_dir():
-            raise CLIError(f"{opt} {folder}: exists and is not a directory")
-    if report is not None and series is None:
-        series = report / "series"
+    series, report = _folders(args)
     if args.workers is not None and (args.workers < 1 or args.scheduler not in (None, "local")):
         raise CLIError(f"--workers {args.workers}: expected a whole number >= 1, for the local cluster only")
-    try:
-        if args.samples is not None:
-            if pf is None:
-                raise CLIError("--samples: give the fit's parameter file with --params P.json (from `tether fit --out`)")
-            plan = sample_plan(trace, spec, base, pf.extra, args.samples, args.seed, str(pf.path))
-        else:
-            plan = grid_plan(trace, spec, base, args.vary)
-    except SweepError as e:
-        raise CLIError(str(e)) from None
-
-    # the first and the last run here first (a grid's low and high corners): a value the FMU
-    # refuses fails now, in one line, before any output; the second times a run
-    run_one(plan.trace, plan.model, plan.base, dict(zip(plan.names, plan.runs[0])))
-    t0 = time.perf_counter()
-    run_one(plan.trace, plan.model, plan.base, dict(zip(plan.names, plan.runs[-1])))
-    per_run = time.perf_counter() - t0
+    plan = _plan(args, trace, spec, base, pf)
+    per_run = _try_corners(plan)
 
     rows = RowsFile(out, plan.columns, plan.fingerprint())
     try:
         done = rows.resume() if args.resume else set()
     except SweepFileError as e:
         raise CLIError(str(e)) from None
-    if series is not None:
-        from ..sweep_output import series_path
-        series.mkdir(parents=True, exist_ok=True)
-        redo = {i for i in done if not series_path(series, i).is_file()}
-    else:
-        redo = set()
-    todo = [i for i in range(len(plan.runs)) if i not in done or i in redo]
+    todo = _todo(len(plan.runs), done, series)
     stderr_progress(f"sweep of {trace.name} with {plan.model}: {len(plan.runs)} runs of {', '.join(plan.names)}"
-             + (f"; {len(done)} done before, {len(todo)} to run" if args.resume else ""))
+                    + (f"; {len(done)} done before, {len(todo)} to run" if args.resume else ""))
     t_all = time.perf_counter()
     try:
         if todo:
@@ -144,17 +118,64 @@ def run(args) -> int:
                     rows.start()                 # OUT is replaced only once the cluster is there
                 execute(plan, client, rows, todo, series, per_run, stderr_progress)
     except CampaignError as e:
-        rows.close()
         raise CLIError(str(e), RUN_ERROR) from None
-    except BaseException:
+    finally:
         rows.close()
-        raise
     rows.finish()
     stderr_progress(f"{len(todo)} runs in {time.perf_counter() - t_all:.1f} s")
     print(f"rows: {out} ({len(plan.runs)} runs)")
     if report is not None:
         write_report(plan, pf, series, report, out)
     return 0
+
+
+def _folders(args) -> tuple[Path | None, Path | None]:
+    """(--series, --report) folders; a report keeps its series in DIR/series unless --series says."""
+    from . import CLIError
+
+    series = Path(args.series) if args.series else None
+    report = Path(args.report) if args.report else None
+    for opt, folder in (("--series", series), ("--report", report)):
+        if folder is not None and folder.exists() and not folder.is_dir():
+            raise CLIError(f"{opt} {folder}: exists and is not a directory")
+    if report is not None and series is None:
+        series = report / "series"
+    return series, report
+
+
+def _plan(args, trace, spec, base, pf):
+    from ..sweep import SweepError, grid_plan, sample_plan
+    from . import CLIError
+
+    try:
+        if args.samples is None:
+            return grid_plan(trace, spec, base, args.vary)
+        if pf is None:
+            raise CLIError("--samples: give the fit's parameter file with --params P.json (from `tether fit --out`)")
+        return sample_plan(trace, spec, base, pf.extra, args.samples, args.seed, str(pf.path))
+    except SweepError as e:
+        raise CLIError(str(e)) from None
+
+
+def _try_corners(plan) -> float:
+    """Run the first and the last run here (a grid's low and high corners): a value the FMU refuses
+    fails now, in one line, before any output. Returns the second's time: the time of a run."""
+    from ..sweep import run_one
+
+    run_one(plan.trace, plan.model, plan.base, dict(zip(plan.names, plan.runs[0])))
+    t0 = time.perf_counter()
+    run_one(plan.trace, plan.model, plan.base, dict(zip(plan.names, plan.runs[-1])))
+    return time.perf_counter() - t0
+
+
+def _todo(n_runs: int, done: set, series: Path | None) -> list[int]:
+    """The runs to do: those not done, and those done whose series is missing where one is asked."""
+    from ..sweep_output import series_path
+
+    if series is not None:
+        series.mkdir(parents=True, exist_ok=True)
+        done = {i for i in done if series_path(series, i).is_file()}
+    return [i for i in range(n_runs) if i not in done]
 
 
 def write_report(plan, pf, series: Path, report: Path, out: Path) -> None:
