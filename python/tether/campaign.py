@@ -97,8 +97,7 @@ def fmu_bytes() -> tuple[str, bytes]:
 
 def ship_fmu(client):
     """Hand the client's FMU to the cluster once; pass the returned future to :func:`use_fmu`."""
-    digest, data = fmu_bytes()
-    return client.scatter((digest, data), hash=False)
+    return client.scatter([fmu_bytes()], hash=False)[0]      # one piece of data (a tuple alone is split)
 
 
 _shipped: dict[str, str] = {}   # on a worker: sha256 -> the FMU file written there
