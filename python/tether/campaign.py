@@ -62,7 +62,7 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
         say(f"starting a local Dask cluster: {n} worker process{'es' if n > 1 else ''}, 1 thread each")
         # its HTTP endpoints on a free port: the fixed default collides with any other cluster here
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR)
+                               silence_logs=logging.CRITICAL)   # a task's error comes back with its result
         try:
             client = Client(cluster)
             try:
