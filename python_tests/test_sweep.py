@@ -189,6 +189,18 @@ def test_a_killed_sweep_resumed_gives_the_file_of_one_never_killed(embedded_rows
     assert out.read_bytes() == embedded_rows.read_bytes()
     assert json.loads((tmp_path / "rows.csv.sweep.json").read_text())["finished"] is True
     assert len(list(series.glob("run_*.parquet"))) == 64
+    # a run's series is the serial run's, sample for sample
+    import pyarrow.parquet as pq
+
+    from tether.sweep import grid_plan, run_one
+    from tether.traces import read_trace
+
+    plan = grid_plan(read_trace(TRACE), "full", {}, GRID[1::2])
+    _, (t, y, T) = run_one(plan.trace, plan.model, plan.base, dict(zip(plan.names, plan.runs[37])), series=True)
+    table = pq.read_table(series / "run_000037.parquet")
+    assert table.column_names == ["time", "displacement", "tension"]
+    for name, want in zip(table.column_names, (t, y, T)):
+        assert np.array_equal(table.column(name).to_numpy(), want)
     # a finished sweep resumed runs nothing and leaves its file as it was
     p = tether("sweep", TRACE, "--model", "full", *GRID, "--out", out, "--resume")
     assert "64 done before, 0 to run" in p.stderr and out.read_bytes() == embedded_rows.read_bytes()
