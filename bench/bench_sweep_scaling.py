@@ -8,11 +8,17 @@ be compared as ratios.
 Each timing starts once the cluster is up and its workers hold the FMU (a first, untimed sweep
 warms them), and ends when the last row is written: what a sweep costs beyond starting Dask.
 
-    python bench/bench_sweep_scaling.py [--grid 8] [--repeat 3] [--tasks 2000]
+--spawned runs `dask scheduler` and `dask worker` processes, each in a session of its own, in place
+of the local cluster (whose workers share this session): where the kernel shares the CPU between
+sessions (autogroup) on a machine busy with other sessions, the local cluster's workers share one
+session's part and a second worker adds little; separate workers, as on a cluster, each get theirs.
+
+    python bench/bench_sweep_scaling.py [--grid 8] [--repeat 3] [--tasks 2000] [--spawned]
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import tempfile
@@ -32,11 +38,24 @@ def main() -> int:
     ap.add_argument("--grid", type=int, default=8, help="points per axis (default 8: 64 runs)")
     ap.add_argument("--repeat", type=int, default=3, help="timed sweeps per cluster size (the best is kept)")
     ap.add_argument("--tasks", type=int, default=2000, help="empty tasks for the overhead per task")
+    ap.add_argument("--spawned", action="store_true",
+                    help="dask scheduler and workers as processes of their own sessions, not a local cluster")
     args = ap.parse_args()
 
     import psutil
 
-    from tether.campaign import dask_client
+    from tether.campaign import dask_client, spawned_cluster
+
+    @contextlib.contextmanager
+    def cluster(workers: int, tmp: Path, spawned: bool):
+        if not spawned:
+            with dask_client(None, workers) as client:
+                yield client
+            return
+        folder = tmp / f"cluster_{workers}"
+        folder.mkdir()
+        with spawned_cluster(folder, workers) as address, dask_client(address) as client:
+            yield client
     from tether.sweep import execute, grid_plan, run_one
     from tether.sweep_output import RowsFile
     from tether.traces import read_trace
@@ -59,14 +78,14 @@ def main() -> int:
     for i in range(n):
         one(i)
     serial = time.perf_counter() - t0
+    print(("spawned dask scheduler and workers" if args.spawned else "local cluster") + f", {n} runs")
     print(f"machine yardstick: one run {1e3 * best:.1f} ms (best of 5); {n} runs one after another in this "
           f"process {serial:.2f} s; load average {os.getloadavg()[0]:.2f}; {os.cpu_count()} cores")
 
     trials: dict = {1: [], 2: []}
     overhead = {}
-    with tempfile.TemporaryDirectory() as tmp, dask_client(None, 1) as one_worker, \
-            dask_client(None, 2) as two_workers:
-        clients = {1: one_worker, 2: two_workers}
+    with tempfile.TemporaryDirectory() as tmp, contextlib.ExitStack() as stack:
+        clients = {w: stack.enter_context(cluster(w, Path(tmp), args.spawned)) for w in (1, 2)}
 
         def sweep(workers: int, k: int) -> float:
             rows = RowsFile(Path(tmp) / f"rows_{workers}_{k}.csv", plan.columns, plan.fingerprint())
@@ -88,11 +107,16 @@ def main() -> int:
             # machine does not inflate as it does the wall time
             client.gather(client.map(_noop, range(200), pure=False))
             procs = [psutil.Process(pid) for pid in client.run(os.getpid).values()]
-            w0 = sum(sum(p.cpu_times()[:2]) for p in procs)
-            c0, t0 = time.process_time(), time.perf_counter()
+            sched = client.run_on_scheduler(os.getpid)
+            here = [psutil.Process()] + ([psutil.Process(sched)] if sched != os.getpid() else [])
+
+            def cpu(ps):
+                return sum(sum(p.cpu_times()[:2]) for p in ps)
+
+            w0, c0, t0 = cpu(procs), cpu(here), time.perf_counter()
             client.gather(client.map(_noop, range(args.tasks), pure=False))
-            overhead[workers] = ((time.perf_counter() - t0) / args.tasks, (time.process_time() - c0) / args.tasks,
-                                 (sum(sum(p.cpu_times()[:2]) for p in procs) - w0) / args.tasks)
+            overhead[workers] = ((time.perf_counter() - t0) / args.tasks, (cpu(here) - c0) / args.tasks,
+                                 (cpu(procs) - w0) / args.tasks)
         files = {p.read_bytes() for p in Path(tmp).glob("rows_*.csv")}
     times = {w: min(t) for w, t in trials.items()}
     for w in (1, 2):

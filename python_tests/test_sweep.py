@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 
 REF = Path(__file__).resolve().parents[1] / "reference_results"
-BIN = Path(sys.executable).parent
 #: the issue's sweep: 64 full-model runs on a short bundled record (20 s at 200 Hz)
 TRACE = REF / "freevib_full_0p1184"
 GRID = ["--vary", "a1=900:1500:8", "--vary", "c0=1:5:8"]
@@ -56,58 +55,13 @@ def embedded_rows(tmp_path_factory) -> Path:
 
 
 # ---------------------------------------------------------------------------------------------
-class DaskCluster:
-    """`dask scheduler` and two `dask worker` processes of this environment on 127.0.0.1."""
-
-    def __init__(self, folder: Path):
-        self.folder = folder
-        self.procs: list[subprocess.Popen] = []
-        self.address = None
-
-    def _start(self, *args) -> subprocess.Popen:
-        log = open(self.folder / f"dask-{len(self.procs)}.log", "w")
-        p = subprocess.Popen([str(BIN / "dask"), *args], stdout=log, stderr=subprocess.STDOUT,
-                             start_new_session=True, cwd=self.folder)
-        self.procs.append(p)
-        return p
-
-    def start(self, workers: int = 2) -> str:
-        sched_file = self.folder / "scheduler.json"
-        self._start("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                    "--scheduler-file", str(sched_file))
-        deadline = time.monotonic() + 60
-        while not sched_file.is_file() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        assert sched_file.is_file(), (self.folder / "dask-0.log").read_text()
-        for _ in range(workers):
-            self._start("worker", "--scheduler-file", str(sched_file), "--host", "127.0.0.1", "--nthreads", "1",
-                        "--nworkers", "1", "--no-dashboard")
-        from dask.distributed import Client
-
-        self.address = json.loads(sched_file.read_text())["address"]
-        with Client(self.address, timeout="30s") as c:
-            c.wait_for_workers(workers, timeout=60)
-        return self.address
-
-    def stop(self) -> None:
-        for p in reversed(self.procs):
-            if p.poll() is None:
-                os.killpg(p.pid, signal.SIGTERM)
-        for p in self.procs:
-            try:
-                p.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait()
-
-
 @pytest.fixture(scope="module")
 def dask_cluster(tmp_path_factory):
-    cluster = DaskCluster(tmp_path_factory.mktemp("dask"))
-    try:
-        yield cluster.start(workers=2)
-    finally:
-        cluster.stop()
+    """`dask scheduler` and two `dask worker` processes of this environment on 127.0.0.1."""
+    from tether.campaign import spawned_cluster
+
+    with spawned_cluster(tmp_path_factory.mktemp("dask"), workers=2) as address:
+        yield address
 
 
 def test_rows_on_a_scheduler_and_two_workers_equal_the_embedded_and_a_serial_run(dask_cluster, embedded_rows,

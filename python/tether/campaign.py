@@ -16,8 +16,11 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import logging
 import os
+import signal
+import subprocess
 import sys
 import tempfile
 import time
@@ -183,3 +186,53 @@ def map_on_cluster(scheduler: str | None, fn: Callable, arg_tuples: Sequence[tup
             if each is not None:
                 each(i, r)
     return results
+
+
+# ---------------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def spawned_cluster(folder: Path, workers: int = 2, timeout: float = 60.0) -> Iterator[str]:
+    """`dask scheduler` and ``workers`` `dask worker` processes (one thread each) of this
+    environment on 127.0.0.1, each in a session of its own, as on a cluster of separate machines;
+    yields the scheduler's address and stops them all on leaving, even on failure. Their logs go
+    to ``folder``."""
+    from dask.distributed import Client
+
+    dask = str(Path(sys.executable).with_name("dask"))
+    folder = Path(folder)
+    sched_file = folder / "scheduler.json"
+    procs: list[subprocess.Popen] = []
+
+    def start(*args) -> None:
+        with open(folder / f"dask-{len(procs)}.log", "w") as log:
+            procs.append(subprocess.Popen([dask, *args], stdout=log, stderr=subprocess.STDOUT, cwd=folder,
+                                          start_new_session=True))
+
+    try:
+        start("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", str(sched_file))
+        deadline = time.monotonic() + timeout
+        while not sched_file.is_file():
+            if time.monotonic() > deadline or procs[0].poll() is not None:
+                raise CampaignError(f"dask scheduler did not start (log: {folder / 'dask-0.log'})")
+            time.sleep(0.1)
+        for _ in range(workers):
+            start("worker", "--scheduler-file", str(sched_file), "--host", "127.0.0.1", "--nthreads", "1",
+                  "--nworkers", "1", "--no-dashboard")
+        address = json.loads(sched_file.read_text())["address"]
+        with Client(address, timeout=f"{timeout}s") as client:
+            client.wait_for_workers(workers, timeout=timeout)
+        yield address
+    finally:
+        _stop(procs)
+
+
+def _stop(procs: Sequence[subprocess.Popen]) -> None:
+    """SIGTERM each process's session (the worker a nanny started with it), SIGKILL what stays."""
+    for p in reversed(procs):
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGTERM)
+    for p in procs:
+        try:
+            p.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
