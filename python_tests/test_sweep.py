@@ -299,3 +299,22 @@ def test_an_unreachable_scheduler_is_one_line_and_leaves_the_old_file(tmp_path):
     assert out.read_text() == "an earlier sweep\n" and not (tmp_path / "rows.csv.sweep.json").exists()
     p = tether("validate", TRACE, "--scheduler", "nowhere", check=False)
     assert p.returncode == 2 and "--scheduler" in p.stderr
+
+
+def test_the_prediction_band_is_the_quantiles_of_the_noisy_runs():
+    """Runs that agree: the band is the noise's own 5/95 % (+-1.6449 sigma); runs at +-a: the
+    mixture's 95 % solves (Phi((y - a)/s) + Phi((y + a)/s)) / 2 = 0.95, checked by the CDF itself."""
+    from scipy.special import ndtr
+
+    from tether.sweep_report import coverage, mixture_quantiles
+
+    s = 0.002
+    band = mixture_quantiles(np.zeros((50, 3)), s)
+    assert band[0] == pytest.approx(-1.6448536 * s, rel=1e-6) and band[2] == pytest.approx(1.6448536 * s, rel=1e-6)
+    assert np.all(np.abs(band[1]) < 1e-12)
+    a = 3 * s
+    Y = np.array([[a], [-a]])
+    q = mixture_quantiles(Y, s)[:, 0]
+    for p, y in zip((0.05, 0.5, 0.95), q):
+        assert (ndtr((y - a) / s) + ndtr((y + a) / s)) / 2 == pytest.approx(p, abs=1e-9)
+    assert coverage(np.array([0.0, 1.0, -1.0, 0.001]), np.array([[-0.5] * 4, [0.0] * 4, [0.5] * 4])) == 0.5
