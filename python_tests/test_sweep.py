@@ -83,7 +83,7 @@ def test_rows_on_a_scheduler_and_two_workers_equal_the_embedded_and_a_serial_run
 
     from tether.campaign import fmu_bytes
 
-    digest, data = fmu_bytes()
+    _, data = fmu_bytes()
     with Client(dask_cluster) as c:
         paths = c.run(lambda: os.environ.get("KT_FMU"))
     assert len(paths) == 2

@@ -98,17 +98,29 @@ def fmu_bytes() -> tuple[str, bytes]:
     return hashlib.sha256(data).hexdigest(), data
 
 
+def _package_version() -> str:
+    from . import __version__
+
+    return __version__
+
+
 def ship_fmu(client):
     """Hand the client's FMU to the cluster once; pass the returned future to :func:`use_fmu`."""
-    return client.scatter([fmu_bytes()], hash=False)[0]      # one piece of data (a tuple alone is split)
+    return client.scatter([(*fmu_bytes(), _package_version())], hash=False)[0]   # one piece (a tuple alone is split)
 
 
 _shipped: dict[str, str] = {}   # on a worker: sha256 -> the FMU file written there
 
 
-def use_fmu(shipped: tuple[str, bytes]) -> None:
-    """On a worker: run the shipped FMU (written once per process into a temporary directory)."""
-    digest, data = shipped
+def use_fmu(shipped: tuple[str, bytes, str]) -> None:
+    """On a worker: run the shipped FMU (written once per process into a temporary directory); the
+    worker's package must be the client's version."""
+    digest, data, version = shipped
+    if _package_version() != version:
+        import socket
+
+        raise CampaignError(f"the worker on {socket.gethostname()} has tether {_package_version()}, the client "
+                            f"{version}: install the client's version on every worker")
     path = _shipped.get(digest)
     if path is None:
         folder = Path(tempfile.mkdtemp(prefix="tether-fmu-"))
