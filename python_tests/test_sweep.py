@@ -35,7 +35,6 @@ def tether(*args, check=True, **kw) -> subprocess.CompletedProcess:
 def serial_file(trace, model, base, vary) -> str:
     """The sweep's file computed run by run in this process, without Dask."""
     from tether.sweep import format_row, grid_plan, run_one
-
     from tether.traces import read_trace
 
     plan = grid_plan(read_trace(trace), model, base, vary)
