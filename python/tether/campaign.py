@@ -77,7 +77,7 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
         return
     check_address(scheduler)
     try:
-        client = Client(scheduler, timeout="10s")
+        client = Client(scheduler, timeout="5s")    # a scheduler answers in milliseconds; retried till then
     except (OSError, TimeoutError) as e:
         raise CampaignError(f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({e})") from None
     try:
