@@ -187,6 +187,19 @@ def test_bad_vary_exits_in_one_line_and_writes_nothing(tmp_path, vary, message):
     assert not out.exists() and not (tmp_path / "rows.csv.sweep.json").exists()
 
 
+def test_a_run_the_fmu_refuses_gives_a_row_of_nan_and_its_error_not_the_end_of_the_sweep():
+    from tether.sweep import OUTPUTS, format_row, run_chunk, run_one
+    from tether.traces import read_trace
+
+    tr = read_trace(TRACE)
+    got = run_chunk([(0, [900.0]), (1, [-5.0]), (2, [1500.0])], tr, "full", {}, ["a1"], None, False)
+    assert [g[0] for g in got] == [0, 1, 2]
+    assert got[0][1] == run_one(tr, "full", {}, {"a1": 900.0})[0] and got[0][3] is None
+    assert all(math.isnan(v) for v in got[1][1]) and len(got[1][1]) == len(OUTPUTS)
+    assert "a1 = -5" in got[1][3] and "\n" not in got[1][3]
+    assert format_row(1, [-5.0], got[1][1]) == "1,-5.0," + ",".join(["nan"] * len(OUTPUTS)) + "\n"
+
+
 # ---------------------------------------------------------------------------------------------
 def test_outputs_match_the_closed_forms_of_a_linear_tether(write_trace):
     """At rest at its balance: tension m g, elongation m g L0 / EA for every varied L0 and m.

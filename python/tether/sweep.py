@@ -263,12 +263,22 @@ def run_one(trace: Trace, model: str, base: Mapping[str, float], varied: Mapping
 
 def run_chunk(chunk: Sequence[tuple[int, Sequence[float]]], trace: Trace, model: str, base: Mapping[str, float],
               names: Sequence[str], shipped_fmu, series: bool):
-    """A Dask task: the runs of ``chunk`` ((index, varied values) pairs) with the shipped FMU."""
+    """A Dask task: the runs of ``chunk`` ((index, varied values) pairs) with the shipped FMU;
+    per run (index, outputs, series or None, the simulation's error or None). A run the FMU
+    refuses gives outputs of NaN and its one-line error: one such set of values does not end a
+    campaign."""
     from .campaign import use_fmu
+    from .run import SimulationError
 
     if shipped_fmu is not None:
         use_fmu(shipped_fmu)
-    return [(i, *run_one(trace, model, base, dict(zip(names, values)), series)) for i, values in chunk]
+    out = []
+    for i, values in chunk:
+        try:
+            out.append((i, *run_one(trace, model, base, dict(zip(names, values)), series), None))
+        except SimulationError as e:
+            out.append((i, [math.nan] * len(OUTPUTS), None, str(e)))
+    return out
 
 
 def format_row(index: int, values: Sequence[float], outputs: Sequence[float]) -> str:
@@ -287,14 +297,16 @@ def chunk_size(n_runs: int, n_workers: int, seconds_per_run: float, task_seconds
 
 
 def execute(plan: Plan, client, rows, todo: Sequence[int], series_dir: Path | None = None,
-            seconds_per_run: float = 0.0, progress=None) -> None:
+            seconds_per_run: float = 0.0, progress=None) -> dict[int, str]:
     """Run the runs ``todo`` of ``plan`` on ``client``; each row goes to ``rows`` (a
-    :class:`tether.sweep_output.RowsFile`) as its task finishes, its series first (Parquet)."""
+    :class:`tether.sweep_output.RowsFile`) as its task finishes, its series first (Parquet).
+    Returns the runs the FMU refused: index -> error (their rows hold NaN outputs)."""
     from .campaign import run_tasks, ship_fmu
     from .sweep_output import write_series
 
+    failed: dict[int, str] = {}
     if not todo:
-        return
+        return failed
     n_workers = max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
     size = chunk_size(len(todo), n_workers, seconds_per_run)
     chunks = [[(i, plan.runs[i]) for i in todo[k:k + size]] for k in range(0, len(todo), size)]
@@ -305,8 +317,13 @@ def execute(plan: Plan, client, rows, todo: Sequence[int], series_dir: Path | No
     fmu = ship_fmu(client)
     for _, results in run_tasks(client, run_chunk, chunks, trace, plan.model, plan.base, plan.names, fmu,
                                 series_dir is not None, label="task", progress=progress):
-        for index, outputs, ser in results:
+        for index, outputs, ser, error in results:
+            if error is not None:
+                failed[index] = error
+                if progress:
+                    progress(f"  run {index} failed, its row holds NaN: {error}")
             if ser is not None:
                 write_series(series_dir, index, plan.trace.measured_column, *ser)
             if index not in rows.rows:
                 rows.append(index, format_row(index, plan.runs[index], outputs))
+    return failed

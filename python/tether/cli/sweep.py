@@ -22,6 +22,8 @@ slack_time (seconds slack), final_elongation, rmse (against the measured column)
 as runs finish; when all are in, OUT.csv is put in run order. OUT.csv.sweep.json beside it records
 what the sweep is: a killed sweep goes on with --resume (same arguments) without redoing its
 finished rows, and ends with the same file (a finished one runs nothing: its --report is redone).
+The first and the last run are tried here before anything is written; a later run the FMU refuses
+gets a row of NaN outputs and a warning naming its error, and the sweep goes on.
 --series DIR writes every run's time series (DIR/run_NNNNNN.parquet: time, the measured column,
 tension). --report DIR writes DIR/index.html: the prediction band (5/50/95 %) against the
 measurement (with --samples, each run carries the fit's noise) and the distributions of the outputs;
@@ -90,7 +92,7 @@ def run(args) -> int:
     from ..sweep import execute
     from ..sweep_output import RowsFile, SweepFileError
     from ..traces import read_trace
-    from . import CLIError, RUN_ERROR
+    from . import CLIError, RUN_ERROR, warn
     from .common import check_output_path, resolve_model
 
     trace = read_trace(args.trace)
@@ -111,12 +113,13 @@ def run(args) -> int:
     stderr_progress(f"sweep of {trace.name} with {plan.model}: {len(plan.runs)} runs of {', '.join(plan.names)}"
                     + (f"; {len(done)} done before, {len(todo)} to run" if args.resume else ""))
     t_all = time.perf_counter()
+    failed: dict = {}
     try:
         if todo:
             with dask_client(args.scheduler, args.workers, stderr_progress) as client:
                 if not args.resume:
                     rows.start()                 # OUT is replaced only once the cluster is there
-                execute(plan, client, rows, todo, series, per_run, stderr_progress)
+                failed = execute(plan, client, rows, todo, series, per_run, stderr_progress)
     except CampaignError as e:
         raise CLIError(str(e), RUN_ERROR) from None
     finally:
@@ -124,6 +127,8 @@ def run(args) -> int:
     rows.finish()
     stderr_progress(f"{len(todo)} runs in {time.perf_counter() - t_all:.1f} s")
     print(f"rows: {out} ({len(plan.runs)} runs)")
+    if failed:
+        warn(f"{len(failed)} run(s) failed, their rows hold NaN (run {min(failed)}: {failed[min(failed)]})")
     if report is not None:
         write_report(plan, pf, series, report, out)
     return 0
@@ -184,8 +189,9 @@ def write_report(plan, pf, series: Path, report: Path, out: Path) -> None:
     from ..sweep_output import read_series
     from ..sweep_report import fit_noise, write_sweep_report
 
-    Y = np.vstack([read_series(series, i, plan.trace.measured_column) for i in range(len(plan.runs))])
     table = np.loadtxt(out, delimiter=",", skiprows=1, ndmin=2)
+    ran = [i for i in range(len(plan.runs)) if np.all(np.isfinite(table[i, 1 + len(plan.names):-1]))]
+    Y = np.vstack([read_series(series, i, plan.trace.measured_column) for i in ran])   # a failed run has none
     sigma = fit_noise(pf.extra if pf is not None and "samples" in plan.description else None, plan.trace.name)
     figures = write_sweep_report(report, plan.trace, Y, sigma, plan.columns, table, 1 + len(plan.names),
                                  f"Sweep of {plan.trace.name} with {plan.model}")
