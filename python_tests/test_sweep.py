@@ -110,6 +110,11 @@ def test_validate_and_discover_each_run_on_the_scheduler(dask_cluster, tmp_path)
         assert tr.name in p.stdout
     p = tether("discover", "--each", traces[0], "--json", tmp_path / "x.json", check=False)
     assert p.returncode == 2 and "--out-dir" in p.stderr
+    # resumed: the records done are kept, nothing runs, the summary is the same
+    summary = (out / "summary.csv").read_bytes()
+    (out / "summary.csv").unlink()
+    p = tether("discover", "--each", *traces, "--out-dir", out, "--scheduler", "tcp://127.0.0.1:1", "--resume")
+    assert "2 of 2 records done before" in p.stderr and (out / "summary.csv").read_bytes() == summary
 
 
 # ---------------------------------------------------------------------------------------------

@@ -28,7 +28,8 @@ can need more): a step whose fits are not all done when it is spent adds nothing
 
 --each TRACE... --out-dir DIR runs one independent discovery per record, each a task on Dask (a
 local cluster of one worker process per core, or --scheduler tcp://HOST:PORT): DIR/NAME.json per
-record as it finishes, then DIR/summary.csv and DIR/summary.json, one row per record.
+record as it finishes, then DIR/summary.csv and DIR/summary.json, one row per record; --resume
+keeps the records DIR already holds (the same record from the same start) and runs the rest.
 
 Exit status: 0 done; 2 bad input; 1 engine or FMU failure.
 """
@@ -42,6 +43,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--each", metavar="TRACE", nargs="+",
                         help="one independent discovery per record, each a task on Dask; with --out-dir")
     parser.add_argument("--out-dir", metavar="DIR", help="--each: DIR/NAME.json per record, DIR/summary.csv")
+    parser.add_argument("--resume", action="store_true", help="--each: keep the records DIR holds, run the rest")
     from .sweep import add_scheduler_argument
     add_scheduler_argument(parser)
     parser.add_argument("--report", metavar="DIR", help="write DIR/index.html with the story in plots")

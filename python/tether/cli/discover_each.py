@@ -1,5 +1,6 @@
 """tether discover --each TRACE... --out-dir DIR: one independent discovery per record, each a
-task on Dask (the embedded local cluster, or --scheduler), with a summary table.
+task on Dask (the embedded local cluster, or --scheduler), with a summary table. --resume keeps
+the records DIR already holds (the same record from the same start) and runs the rest.
 
 DIR/NAME.json is each record's discovery (as ``tether discover --json`` writes it), written as the
 record finishes; DIR/summary.csv and DIR/summary.json hold one row per record: the effects named,
@@ -32,12 +33,36 @@ def summary_row(name: str, experiment: str, doc: dict) -> dict:
 
 
 def run_each(args) -> int:
-    from ..atomic import write_with
-    from ..models import parse_model
     from ..report import write_json_atomic
+    from . import warn
+    from .sweep import cluster_map
+
+    traces, out = _check(args)
+    names = [t.name for t in traces]
+    docs = _done_before(out, traces, args.start) if args.resume else {}
+    todo = [i for i in range(len(traces)) if i not in docs]
+    if docs:
+        warn(f"--resume: {len(docs)} of {len(traces)} records done before ({out}/NAME.json), {len(todo)} to run")
+
+    def finished(k: int, doc: dict) -> None:
+        write_json_atomic(out / f"{names[todo[k]]}.json", doc)
+        docs[todo[k]] = doc
+
+    if todo:
+        cluster_map(args.scheduler, discover_record, [(traces[i], args.start, args.budget) for i in todo], "record",
+                    each=finished)
+    rows = [summary_row(t.name, t.experiment, docs[i]) for i, t in enumerate(traces)]
+    _write_summary(out, rows)
+    print(summary_table(rows))
+    print(f"records: {out}/NAME.json; summary: {out / 'summary.csv'}")
+    return 0
+
+
+def _check(args):
+    """(traces, output folder), every argument and record checked before any work."""
+    from ..models import parse_model
     from ..traces import read_trace
     from . import CLIError
-    from .sweep import cluster_map
 
     if args.trace is not None or args.json is not None:
         raise CLIError("--each: give the records after --each and --out-dir DIR, not TRACE or --json")
@@ -55,13 +80,31 @@ def run_each(args) -> int:
     out = Path(args.out_dir)
     if out.exists() and not out.is_dir():
         raise CLIError(f"--out-dir {out}: exists and is not a directory")
+    return traces, out
 
-    def finished(i: int, doc: dict) -> None:
-        write_json_atomic(out / f"{names[i]}.json", doc)
 
-    docs = cluster_map(args.scheduler, discover_record, [(t, args.start, args.budget) for t in traces], "record",
-                       each=finished)
-    rows = [summary_row(t.name, t.experiment, d) for t, d in zip(traces, docs)]
+def _done_before(out: Path, traces, start: str) -> dict:
+    """index -> discovery of the records DIR/NAME.json already holds: the same record (path and
+    samples) from the same start model."""
+    import json
+
+    done = {}
+    for i, t in enumerate(traces):
+        try:
+            doc = json.loads((out / f"{t.name}.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        same = (isinstance(doc, dict) and doc.get("start_model") == start and doc.get("samples") == len(t.time)
+                and Path(str(doc.get("trace", ""))).resolve() == Path(t.stem).resolve())
+        if same:
+            done[i] = doc
+    return done
+
+
+def _write_summary(out: Path, rows) -> None:
+    from ..atomic import write_with
+    from ..report import write_json_atomic
+
     write_json_atomic(out / "summary.json", {"format": "tether-discover-each/1", "records": rows})
 
     def fill(f):
@@ -70,9 +113,6 @@ def run_each(args) -> int:
         w.writerows([[_cell(r[c]) for c in SUMMARY_COLUMNS] for r in rows])
 
     write_with(out / "summary.csv", fill)
-    print(summary_table(rows))
-    print(f"records: {out}/NAME.json; summary: {out / 'summary.csv'}")
-    return 0
 
 
 def _cell(v) -> str:
