@@ -106,7 +106,7 @@ def _package_version() -> str:
 
 def ship_fmu(client):
     """Hand the client's FMU to the cluster once; pass the returned future to :func:`use_fmu`."""
-    return client.scatter([(*fmu_bytes(), _package_version())], hash=False)[0]   # one piece (a tuple alone is split)
+    return client.scatter([(*fmu_bytes(), _package_version())], hash=False, broadcast=True)[0]   # one piece (a tuple alone is split)
 
 
 _shipped: dict[str, str] = {}   # on a worker: sha256 -> the FMU file written there

@@ -313,7 +313,7 @@ def execute(plan: Plan, client, rows, todo: Sequence[int], series_dir: Path | No
     if progress:
         progress(f"{len(todo)} runs in {len(chunks)} tasks of up to {size} on {n_workers} worker"
                  f"{'s' if n_workers > 1 else ''}")
-    trace = client.scatter(plan.trace, hash=False)
+    trace = client.scatter(plan.trace, hash=False, broadcast=True)
     fmu = ship_fmu(client)
     for _, results in run_tasks(client, run_chunk, chunks, trace, plan.model, plan.base, plan.names, fmu,
                                 series_dir is not None, label="task", progress=progress):
