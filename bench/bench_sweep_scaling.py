@@ -9,9 +9,10 @@ Each timing starts once the cluster is up and its workers hold the FMU (a first,
 warms them), and ends when the last row is written: what a sweep costs beyond starting Dask.
 
 --spawned runs `dask scheduler` and `dask worker` processes, each in a session of its own, in place
-of the local cluster (whose workers share this session): where the kernel shares the CPU between
-sessions (autogroup) on a machine busy with other sessions, the local cluster's workers share one
-session's part and a second worker adds little; separate workers, as on a cluster, each get theirs.
+of the local cluster (whose workers share this session). Where the kernel shares the CPU between
+sessions (autogroup) and other sessions keep the machine busy, each spawned worker gets a session's
+part of it: the ratio then measures that sharing, not the cluster (docs/scale.md). Hold a quiet
+machine's local-cluster figure against the target.
 
     python bench/bench_sweep_scaling.py [--grid 8] [--repeat 3] [--tasks 2000] [--spawned]
 """
