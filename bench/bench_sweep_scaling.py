@@ -34,6 +34,16 @@ def _noop(x):
     return x
 
 
+def plain_pair(grid: int) -> list[float]:
+    """The serial loop in two plain processes started together (no Dask): what two cores give."""
+    import subprocess
+
+    at = time.time() + 5.0
+    cmd = [sys.executable, __file__, "--grid", str(grid), "--loop-at", str(at)]
+    procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True) for _ in range(2)]
+    return [float(p.communicate()[0].split()[-1]) for p in procs]
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--grid", type=int, default=8, help="points per axis (default 8: 64 runs)")
@@ -41,6 +51,7 @@ def main() -> int:
     ap.add_argument("--tasks", type=int, default=2000, help="empty tasks for the overhead per task")
     ap.add_argument("--spawned", action="store_true",
                     help="dask scheduler and workers as processes of their own sessions, not a local cluster")
+    ap.add_argument("--loop-at", type=float, help=argparse.SUPPRESS)   # one plain serial loop, from this time
     args = ap.parse_args()
 
     import psutil
@@ -75,13 +86,21 @@ def main() -> int:
         t0 = time.perf_counter()
         one(0)
         best = min(best, time.perf_counter() - t0)
+    if args.loop_at is not None:
+        time.sleep(max(0.0, args.loop_at - time.time()))
     t0 = time.perf_counter()
     for i in range(n):
         one(i)
     serial = time.perf_counter() - t0
+    if args.loop_at is not None:
+        print(f"{serial:.4f}")
+        return 0
+    pair = plain_pair(args.grid)
     print(("spawned dask scheduler and workers" if args.spawned else "local cluster") + f", {n} runs")
     print(f"machine yardstick: one run {1e3 * best:.1f} ms (best of 5); {n} runs one after another in this "
           f"process {serial:.2f} s; load average {os.getloadavg()[0]:.2f}; {os.cpu_count()} cores")
+    print(f"the machine's ceiling: two plain processes running the {n} runs at once take {pair[0]:.2f} and "
+          f"{pair[1]:.2f} s: {2 * serial / max(pair):.2f} x the work of one in the same time")
 
     trials: dict = {1: [], 2: []}
     overhead = {}
