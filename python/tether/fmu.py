@@ -1,7 +1,8 @@
 """Locate, extract and describe the KevlarTether FMU.
 
-The FMU is ``$KT_FMU`` if that variable is set, else ``<repo root>/build/KevlarTether.fmu`` (built
-by ``scripts/setup.sh``). It is extracted once per process (per FMU file and modification time)
+The FMU is ``$KT_FMU`` if that variable is set, else the one installed inside the package, else
+``<repo root>/build/KevlarTether.fmu`` (built by ``scripts/setup.sh``; see :mod:`tether.resources`).
+It is extracted once per process (per FMU file and modification time)
 into a temporary directory that is removed at exit.
 """
 
@@ -15,9 +16,9 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_FMU = REPO_ROOT / "build" / "KevlarTether.fmu"
-SETUP_HINT = "run scripts/setup.sh in the repository (or cmake -S . -B build && cmake --build build), or set KT_FMU"
+from .resources import SETUP_HINT as _HINT, fmu_candidates
+
+SETUP_HINT = _HINT + ", or set KT_FMU"
 
 
 class FMUError(RuntimeError):
@@ -58,11 +59,11 @@ class Description:
 
 def fmu_path() -> Path:
     """The FMU to use; FMUError if it does not exist."""
-    env = os.environ.get("KT_FMU")
-    p = Path(env) if env else DEFAULT_FMU
-    if not p.is_file():
-        src = "KT_FMU" if env else "the default location"
-        raise FMUError(f"FMU not found: {p} ({src}); {SETUP_HINT}")
+    cands = fmu_candidates()
+    p = next((c for c in cands if c.is_file()), None)
+    if p is None:
+        src = "KT_FMU" if os.environ.get("KT_FMU") else "looked at " + ", ".join(map(str, cands))
+        raise FMUError(f"FMU not found: {cands[0]} ({src}); {SETUP_HINT}")
     return p
 
 

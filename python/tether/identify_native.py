@@ -3,7 +3,8 @@
 The engine runs the FMU's own physics (the same C sources, linked as ``tether_core``) in batch and
 fits parameters by Levenberg-Marquardt. Parameters and outputs are named as in modelDescription.xml.
 
-Library lookup: env ``KT_IDENTIFY_LIB``; else ``<repo>/build/fmu_src/identify/libtether_identify.so``
+Library lookup (:func:`tether.resources.identify_library_candidates`): env ``KT_IDENTIFY_LIB``;
+else the one installed inside the package; else ``<repo>/build/fmu_src/identify/libtether_identify.so``
 (where the top-level CMake build puts it), then ``<repo>/build/libtether_identify.so``.
 
     from tether.identify_native import Experiment, simulate, fit
@@ -15,7 +16,6 @@ Library lookup: env ``KT_IDENTIFY_LIB``; else ``<repo>/build/fmu_src/identify/li
 from __future__ import annotations
 
 import ctypes as C
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -30,7 +30,6 @@ INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
 API_VERSION = 4
 SCALE = {"auto": 0, "log": 1, "linear": 2}
 
-_REPO = Path(__file__).resolve().parents[2]
 _DP = C.POINTER(C.c_double)
 _IP = C.POINTER(C.c_int)
 
@@ -78,14 +77,12 @@ _lib = None
 
 
 def _candidates() -> list[Path]:
-    env = os.environ.get("KT_IDENTIFY_LIB")
-    if env:
-        return [Path(env)]
-    build = Path(os.environ.get("KT_BUILD_DIR", _REPO / "build"))
-    if not build.is_absolute():
-        build = _REPO / build
-    return [build / "fmu_src" / "identify" / "libtether_identify.so", build / "libtether_identify.so",
-            build / "identify" / "libtether_identify.so"]
+    from .resources import identify_library_candidates
+
+    return identify_library_candidates()
+
+
+from .resources import SETUP_HINT  # noqa: E402
 
 
 def library() -> C.CDLL:
@@ -97,7 +94,7 @@ def library() -> C.CDLL:
     path = next((p for p in cands if p.is_file()), None)
     if path is None:
         raise FileNotFoundError("libtether_identify.so not found (looked at: " + ", ".join(map(str, cands)) +
-                                "); build it with `cmake --build build` or set KT_IDENTIFY_LIB")
+                                "); " + SETUP_HINT + ", or set KT_IDENTIFY_LIB")
     lib = C.CDLL(str(path))
     lib.kt_api_version.restype = C.c_int
     lib.kt_parameter_count.restype = C.c_int

@@ -122,12 +122,14 @@ def validate_trace(trace: Trace | str | Path, model: str | ModelSpec | None = No
 
 
 def find_traces(paths: Iterable[str | Path]) -> list[Path]:
-    """Trace stems from files, stems or directories (a directory: every NAME.csv with a NAME.json)."""
+    """Trace stems from files, stems or directories (a directory: every NAME.csv or NAME.csv.gz with a NAME.json)."""
     stems: list[Path] = []
     for p in paths:
         p = Path(p)
         if p.is_dir():
-            stems.extend(sorted(c.with_suffix("") for c in p.glob("*.csv") if c.with_suffix(".json").is_file()))
+            found = [c.with_suffix("") for c in p.glob("*.csv")]
+            found += [c.with_name(c.name[:-len(".csv.gz")]) for c in p.glob("*.csv.gz")]
+            stems.extend(sorted({s for s in found if s.with_name(s.name + ".json").is_file()}))
         else:
             stems.append(p)
     return stems

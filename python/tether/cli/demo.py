@@ -13,7 +13,7 @@ DESCRIPTION = """\
 The main job on the bundled data:
   1. validate the KevlarTether FMU against every synthetic reference trace of the paper's
      experiments (reference_results/), each with the model that generated it;
-  2. simulate the Bouc-Wen benchmark (../shared/datasets/boucwen, when present) with its nominal
+  2. simulate the Bouc-Wen benchmark (datasets/boucwen, bundled) with its nominal
      parameters (reference_results/boucwen_nominal.json) and compare with the published results;
   3. run a discovery (tether discover) on reference_results/discovery/freevib_hidden, a free
      vibration record from the tests' independent generator with two effects hidden in it, and
@@ -21,9 +21,7 @@ The main job on the bundled data:
 and write DIR/index.html linking everything (default DIR: reports/demo).
 """
 
-REPO_ROOT = Path(__file__).resolve().parents[3]
-
-# published RMS errors on test_multisine (../shared/datasets/README.md)
+# published RMS errors on test_multisine (datasets/boucwen/README.md)
 PUBLISHED = [
     ("third-order linear model", 1.5e-4),
     ("PNLSS, polynomial degree 2 (34 parameters)", 5.4e-5),
@@ -40,6 +38,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from ..models import read_params
     from ..report import write_text_atomic
+    from ..resources import dataset_dir, reference_results_dir
     from ..run import simulate
     from .validate import run as run_validate
 
@@ -58,8 +57,8 @@ def run(args) -> int:
 
     print("\n== 2. the Bouc-Wen benchmark with its nominal parameters")
     bench_rows = []
-    data = (REPO_ROOT / ".." / "shared" / "datasets" / "boucwen").resolve()
-    nominal = REPO_ROOT / "reference_results" / "boucwen_nominal.json"
+    data = dataset_dir("boucwen")
+    nominal = reference_results_dir() / "boucwen_nominal.json"
     if data.is_dir() and nominal.is_file():
         pf = read_params(nominal)
         for name in ("test_multisine", "test_sinesweep"):
@@ -73,7 +72,7 @@ def run(args) -> int:
             bench_rows.append((name, rms))
             print(f"  {name}: RMS error {rms:.3g} m (model {pf.model}, nominal parameters)")
     else:
-        print(f"  skipped: {data} not found (the third-party datasets live in ../shared/datasets)")
+        print(f"  skipped: {data} or {nominal} not found (an incomplete installation)")
 
     print("\n== 3. discovery on a record with hidden effects")
     disc = _discovery(report)
@@ -103,25 +102,25 @@ it sits at the level of the true equations (2.3e-7 m), far below the black-box m
     return 0
 
 
-DISCOVERY_TRACE = REPO_ROOT / "reference_results" / "discovery" / "freevib_hidden"
-
-
 def _discovery(report: Path) -> str:
     """Step 3: tether discover on the bundled record; returns the report section (HTML)."""
     import json
+
+    from ..resources import reference_results_dir
 
     from ..discover import account, discover, discovery_document
     from ..discover_report import write_discovery_report
     from ..traces import read_trace
 
     esc = html.escape
-    trace = read_trace(DISCOVERY_TRACE)
+    discovery_trace = reference_results_dir() / "discovery" / "freevib_hidden"
+    trace = read_trace(discovery_trace)
     d = discover(trace, progress=lambda line: (sys.stderr.write("  " + line + "\n"), sys.stderr.flush()))
     doc = discovery_document(d)
     out = report / "discovery"
     write_discovery_report(out, d, doc)
     print(account(d))
-    hidden = sorted(json.loads(DISCOVERY_TRACE.with_suffix(".json").read_text()).get("hidden", {}).get("revealed", []))
+    hidden = sorted(json.loads(discovery_trace.with_suffix(".json").read_text()).get("hidden", {}).get("revealed", []))
     named = doc["added_effects"]
     verdict = "the same set" if sorted(named) == hidden else "NOT the hidden set"
     print(f"  hidden in the record: {', '.join(hidden) or 'nothing'}; named: {', '.join(named) or 'nothing'} ({verdict})")

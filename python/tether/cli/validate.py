@@ -24,7 +24,6 @@ Writes a table to the terminal, DIR/validation.json and DIR/index.html with a pl
 loop). Exit status: 0 all traces simulated; 2 bad input; 1 FMU missing or failed.
 """
 
-REPO_ROOT = Path(__file__).resolve().parents[3]
 
 
 def add_arguments(parser) -> None:
@@ -43,7 +42,9 @@ def run(args) -> int:
     from ..validate import find_traces, validate_trace
     from . import CLIError, warn
 
-    paths = args.traces or [REPO_ROOT / "reference_results"]
+    from ..resources import reference_results_dir
+
+    paths = args.traces or [reference_results_dir()]
     stems = find_traces(paths)
     if not stems:
         raise CLIError(f"no traces found in {', '.join(str(p) for p in paths)} (a trace is NAME.csv with NAME.json)")
