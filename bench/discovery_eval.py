@@ -170,7 +170,7 @@ def boucwen(outdir: Path) -> dict:
     from tether.run import simulate
     from tether.traces import read_trace
 
-    data = (REPO / ".." / "shared" / "datasets" / "boucwen").resolve()
+    data = REPO / "datasets" / "boucwen"
     t0 = time.perf_counter()
     d = D.discover(read_trace(data / "train_multisine"), progress=lambda s: sys.stderr.write(f"  bw: {s}\n"))
     secs = time.perf_counter() - t0

@@ -2,7 +2,7 @@
 
 * ``fmu_path``: the FMU the package will use ($KT_FMU, else <repo>/build/KevlarTether.fmu); a
   missing FMU fails the test with the setup hint (nothing is skipped).
-* ``repo_root``, ``datasets_dir`` (../shared/datasets relative to the repository root).
+* ``repo_root``, ``datasets_dir`` (the bundled third-party data sets, datasets/ in the repository).
 * ``write_trace``: writes NAME.csv + NAME.json into tmp_path and returns the stem path.
 * ``run_cli``: runs ``tether`` in-process; returns (status, stdout, stderr).
 """
@@ -25,9 +25,9 @@ def repo_root() -> Path:
 
 @pytest.fixture(scope="session")
 def datasets_dir() -> Path:
-    d = (REPO_ROOT / ".." / "shared" / "datasets").resolve()
+    d = REPO_ROOT / "datasets"
     if not d.is_dir():
-        pytest.fail(f"third-party datasets not found at {d} (expected ../shared/datasets from the repository root)")
+        pytest.fail(f"third-party datasets not found at {d} (expected datasets/ in the repository)")
     return d
 
 

@@ -4,7 +4,7 @@
 Purpose
 =======
 Test data for the project's *discovery* workflow, which must name the effects a trace contains
-(names from ``/work/shared/trace-format.md``: ``nonlinear_stiffness``, ``hysteresis``,
+(names from ``docs/trace-format.md``: ``nonlinear_stiffness``, ``hysteresis``,
 ``nonlinear_damping``, ``creep``, ``slack``).  The generator deliberately does **not** use the
 team's model equations (cubic tension law, Bouc-Wen / Kawabata hysteresis, polynomial c(x),
 Kelvin-chain creep) and does not import the ``tether`` package or the FMU: discovery is tested

@@ -135,7 +135,7 @@ def bw_params(tmp_path):
 
 @pytest.mark.parametrize("record, limit", [("test_multisine", 5e-7), ("test_sinesweep", 5e-6)])
 def test_boucwen_benchmark(record, limit, datasets_dir, bw_params, tmp_path, fmu_path):
-    trace = datasets_dir / "boucwen" / f"{record}.csv"
+    trace = datasets_dir / "boucwen" / f"{record}.csv.gz"
     out = tmp_path / "pred.csv"
     env = dict(os.environ, KT_FMU=str(fmu_path))
     t0 = time.perf_counter()

@@ -18,6 +18,7 @@ build/KevlarTether.fmu.
 from __future__ import annotations
 
 import csv
+import gzip
 import importlib.util
 import json
 import os
@@ -31,9 +32,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 REF = REPO / "reference_results"
-DATASETS = REPO.parent / "shared" / "datasets"
-if not DATASETS.is_dir():
-    DATASETS = Path("/work/shared/datasets")
+DATASETS = REPO / "datasets"
 sys.path.insert(0, str(REF))
 import fmu_driver as fd  # noqa: E402
 
@@ -46,7 +45,7 @@ def default(name):
 
 
 def read_csv(path: Path) -> dict:
-    with open(path, newline="") as f:
+    with (gzip.open(path, "rt", newline="") if path.suffix == ".gz" else open(path, newline="")) as f:
         rows = list(csv.reader(f))
     data = np.array([[float(v) for v in r] for r in rows[1:]])
     return {name: data[:, k] for k, name in enumerate(rows[0])}
@@ -240,7 +239,7 @@ def boucwen_start_values(rtol=1e-9):
 
 def load_benchmark(name):
     meta = json.loads((DATASETS / "boucwen" / f"{name}.json").read_text())
-    d = read_csv(DATASETS / "boucwen" / f"{name}.csv")
+    d = read_csv(DATASETS / "boucwen" / f"{name}.csv.gz")
     assert meta["tether"]["length_m"] == 1.0 and meta["payload_mass_kg"] == 2.0
     assert meta["gravity_m_s2"] == 0.0
     return meta, d["time"], d["force"], d["displacement"]
@@ -300,7 +299,7 @@ def test_c_boucwen_multisine_through_tether_cli(tmp_path):
     if cmd is None:
         pytest.skip("the tether CLI is not installed yet")
     out = tmp_path / "multisine_sim.csv"
-    trace = os.path.relpath(DATASETS / "boucwen" / "test_multisine.csv", REPO)
+    trace = os.path.relpath(DATASETS / "boucwen" / "test_multisine.csv.gz", REPO)
     res = subprocess.run(cmd + ["simulate", trace, "--params", "reference_results/boucwen_nominal.json",
                                 "--out", str(out)], cwd=REPO, capture_output=True, text=True,
                          timeout=300, env={**os.environ, "KT_FMU": str(fd.fmu_path())})

@@ -1,7 +1,7 @@
 """The synthetic reference traces in reference_results/ (made by reference_results/regenerate.py).
 
 - every trace is valid `tether-trace/1` (checked here from the contract in
-  ../shared/trace-format.md, not with the project's own reader), says SYNTHETIC and documents how
+  docs/trace-format.md, not with the project's own reader), says SYNTHETIC and documents how
   it was made under the extra key `synthetic`;
 - re-simulating each trace through the FMU, from nothing but its own two files, reproduces
   NAME.expected.csv within the regression tolerance stated in NAME.json (1 % of the noise sigma
@@ -184,7 +184,7 @@ def test_params_2p0mm_file():
 
 
 def test_boucwen_nominal_file():
-    """The benchmark's nominal parameters (../shared/datasets/README.md) in the FMU's terms:
+    """The benchmark's nominal parameters (datasets/boucwen/README.md) in the FMU's terms:
     z' = alpha y' - beta (gamma |y'| z + delta y' |z|) (nu = 1) is
     z' = x' (A - |z| (bw_gamma + bw_beta sgn(x' z))) with A = alpha, bw_beta = beta gamma,
     bw_gamma = beta delta; k = EA / L0 with L0 = 1 m."""

@@ -29,9 +29,7 @@ import fmu_driver as fd  # noqa: E402
 G = 9.81
 KG = 9.81  # N per kg of hanging weight
 RTOL = 1e-10
-DATASETS = HERE.parent.parent / "shared" / "datasets"
-if not DATASETS.is_dir():
-    DATASETS = Path("/work/shared/datasets")
+DATASETS = HERE.parent / "datasets"
 
 PARAMS_2P0MM = {"slip_capacity0": 5e-4, "slip_limit": 1.3333e-3}
 BOUCWEN_NOMINAL = {
@@ -366,7 +364,7 @@ def boucwen_benchmark():
     from scipy.interpolate import CubicSpline
     sv = dict(MODELS["linear+boucwen"], L0=1.0, rtol=RTOL, **BOUCWEN_NOMINAL)
     out = {}
-    d = np.loadtxt(DATASETS / "boucwen" / "test_multisine.csv", delimiter=",", skiprows=1)
+    d = np.loadtxt(DATASETS / "boucwen" / "test_multisine.csv.gz", delimiter=",", skiprows=1)
     t, f, y = d[:, 0], d[:, 1], d[:, 2]
     N = len(t)
     dt = (t[-1] - t[0]) / (N - 1)
@@ -623,11 +621,11 @@ trace name) and atomic writes, so it is deterministic (it takes well under a min
 
 | file | what |
 |---|---|
-| `NAME.csv`, `NAME.json` | a synthetic trace in the project's trace format (`tether-trace/1`, `../../shared/trace-format.md`). The JSON's `description` says SYNTHETIC; the extra key `synthetic` holds the generating model, its parameters, every FMU start value, how the input is interpolated, the noise (sigma, seed) and the regression tolerance. |
+| `NAME.csv`, `NAME.json` | a synthetic trace in the project's trace format (`tether-trace/1`, `../docs/trace-format.md`). The JSON's `description` says SYNTHETIC; the extra key `synthetic` holds the generating model, its parameters, every FMU start value, how the input is interpolated, the noise (sigma, seed) and the regression tolerance. |
 | `NAME.json` key `input_interpolation` | `"linear"` on the load traces (an extra key, allowed by the format): the load is piecewise linear between samples. A cubic spline through these samples rings at every ramp corner (the creep traces' 1 s weight changes between 60 s samples give a spline from -940 N to 1060 N; the Kawabata traces' dips below 0 N by 4 mN), so readers should interpolate `load` linearly. |
 | `NAME.expected.csv` | the noise-free FMU outputs at the same samples: `time`, the measured column, `tension` (full precision, for regression tests) |
 | `params_2p0mm.json` | the 2.0 mm tether's creep parameters: `{{"model": "cubic+creep", "parameters": {json.dumps(PARAMS_2P0MM)}}}` (other parameters: the FMU defaults). Chosen to reproduce the paper's unrecoverable creep of 8, 5, 3 mm. |
-| `boucwen_nominal.json` | the Bouc-Wen benchmark's nominal parameters (`../../shared/datasets/README.md`) in the FMU's terms, model `linear+boucwen`: EA = k = 5e4 N (L0 = 1 m), c0 = 10, bw_A = alpha = 5e4, bw_beta = beta gamma = 800, bw_gamma = beta delta = -1100, bw_n = 1, m = 2, g = 0 |
+| `boucwen_nominal.json` | the Bouc-Wen benchmark's nominal parameters (`../datasets/boucwen/README.md`) in the FMU's terms, model `linear+boucwen`: EA = k = 5e4 N (L0 = 1 m), c0 = 10, bw_A = alpha = 5e4, bw_beta = beta gamma = 800, bw_gamma = beta delta = -1100, bw_n = 1, m = 2, g = 0 |
 | `creep.png`, `stiffness.png`, `kawabata.png`, `freevib.png`, `boucwen_benchmark.png` | figures like the paper's 3-5, 6-8, 10 and 12, and the benchmark check |
 | `regenerate.py` | the generator; `fmu_driver.py`: drives the FMU sample by sample with fmpy (also used by the tests) |
 

@@ -1,9 +1,15 @@
 """Read and check measured traces in the `tether-trace/1` format.
 
 A trace is ``NAME.csv`` (samples) plus ``NAME.json`` (the experiment), side by side; see
-``/work/shared/trace-format.md`` (the contract). :func:`read_trace` accepts either file or the stem
+``docs/trace-format.md`` (the contract). :func:`read_trace` accepts either file or the stem
 and checks everything strictly. Every problem raises :class:`TraceError` with one line that names
 the file, the line/column or key, the offending value and what was expected.
+
+Also read, beyond the letter of the format (real files): ``NAME.csv.gz`` in place of ``NAME.csv``;
+quoted column names (fmpy's result CSV, ``fmpy.util.write_csv``); a leading column without a name
+(the index pandas' ``DataFrame.to_csv`` writes). ``read_trace(..., require_measured=False)`` takes an
+input-only trace (no measured column; ``measured`` is None) for a pure prediction.
+Traces from memory: :meth:`Trace.from_arrays` and :meth:`Trace.from_dataframe`, checked the same way.
 
 Defaults applied here (from the format):
 
@@ -17,6 +23,8 @@ Extra CSV columns and unknown JSON keys are ignored.
 
 from __future__ import annotations
 
+import csv
+import gzip
 import json
 import math
 import os
@@ -71,7 +79,7 @@ class Trace:
     input_column: str | None     # 'force' / 'load' / None
     input: np.ndarray | None
     measured_column: str         # 'displacement' / 'elongation'
-    measured: np.ndarray
+    measured: np.ndarray | None  # None only for an input-only trace (read_trace(require_measured=False))
     description: str = ""
     meta: dict[str, Any] = field(default_factory=dict, repr=False)  # the JSON as read
 
@@ -91,20 +99,78 @@ class Trace:
     def __len__(self) -> int:
         return len(self.time)
 
+    @classmethod
+    def from_arrays(cls, time, *, experiment: str, length_m: float, force=None, load=None,
+                    displacement=None, elongation=None, payload_mass_kg: float | None = None,
+                    gravity_m_s2: float | None = None, initial_displacement_m: float | None = None,
+                    initial_velocity_m_s: float | None = None, periodic_samples: int | None = None,
+                    name: str = "trace", description: str = "", require_measured: bool = True) -> "Trace":
+        """A trace from arrays in memory, checked as a file would be (keys as in NAME.json).
+
+        ``Trace.from_arrays(t, experiment="forced", length_m=1.0, payload_mass_kg=2.0, force=u,
+        displacement=y)``; the input column the experiment needs (``force`` or ``load``) is
+        required, the measured one (``displacement`` or ``elongation``) unless ``require_measured``
+        is False. Errors name ``name``, the argument and the first bad index.
+        """
+        meta: dict[str, Any] = {"format": FORMAT, "experiment": experiment, "tether": {"length_m": length_m}}
+        for key, value in (("payload_mass_kg", payload_mass_kg), ("gravity_m_s2", gravity_m_s2),
+                           ("initial_displacement_m", initial_displacement_m),
+                           ("initial_velocity_m_s", initial_velocity_m_s), ("periodic_samples", periodic_samples)):
+            if value is not None:
+                meta[key] = value.item() if hasattr(value, "item") else value
+        if description:
+            meta["description"] = description
+        where = f"{name} (in memory)"
+        columns = {"time": time, "force": force, "load": load, "displacement": displacement, "elongation": elongation}
+        given = {k: v for k, v in columns.items() if v is not None}
+        return _trace_from_columns(Path(where), meta, given, name=name, require_measured=require_measured)
+
+    @classmethod
+    def from_dataframe(cls, df, *, experiment: str, length_m: float, name: str = "trace",
+                       require_measured: bool = True, **keys) -> "Trace":
+        """A trace from a pandas DataFrame with the format's column names.
+
+        ``time`` is a column or the index (an index named ``time``); other columns are ignored;
+        ``keys`` are the other arguments of :meth:`from_arrays` (payload_mass_kg, gravity_m_s2, ...).
+        """
+        cols = {str(c).strip(): c for c in df.columns}
+        if "time" in cols:
+            time = df[cols["time"]].to_numpy(dtype=float)
+        elif getattr(df.index, "name", None) == "time":
+            time = df.index.to_numpy(dtype=float)
+        else:
+            raise TraceError(f"{name} (in memory): no column or index named 'time' (columns: "
+                             f"{', '.join(map(str, df.columns))}); expected the time in seconds")
+        arrays = {c: df[cols[c]].to_numpy(dtype=float)
+                  for c in ("force", "load", "displacement", "elongation") if c in cols}
+        return cls.from_arrays(time, experiment=experiment, length_m=length_m, name=name,
+                               require_measured=require_measured, **arrays, **keys)
+
 
 # ---------------------------------------------------------------------------------------------
 def trace_paths(path: str | os.PathLike) -> tuple[Path, Path, Path]:
-    """(stem, csv, json) for a path naming NAME.csv, NAME.json or the stem NAME."""
+    """(stem, csv, json) for a path naming NAME.csv, NAME.csv.gz, NAME.json or the stem NAME.
+
+    The CSV is NAME.csv, or NAME.csv.gz where only that exists (or is named)."""
     p = Path(path)
-    if p.suffix.lower() in (".csv", ".json"):
-        stem = p.with_suffix("")
-    else:
-        stem = p
-    return stem, stem.with_name(stem.name + ".csv"), stem.with_name(stem.name + ".json")
+    name = p.name
+    if name.lower().endswith(".csv.gz"):
+        stem = p.with_name(name[:-len(".csv.gz")])
+        return stem, p, stem.with_name(stem.name + ".json")
+    stem = p.with_suffix("") if p.suffix.lower() in (".csv", ".json") else p
+    csv_path = stem.with_name(stem.name + ".csv")
+    gz_path = stem.with_name(stem.name + ".csv.gz")
+    if not csv_path.is_file() and gz_path.is_file():
+        csv_path = gz_path
+    return stem, csv_path, stem.with_name(stem.name + ".json")
 
 
-def read_trace(path: str | os.PathLike) -> Trace:
-    """Read and check the trace named by ``path`` (NAME.csv, NAME.json or NAME)."""
+def read_trace(path: str | os.PathLike, *, require_measured: bool = True) -> Trace:
+    """Read and check the trace named by ``path`` (NAME.csv, NAME.csv.gz, NAME.json or NAME).
+
+    With ``require_measured=False`` the measured column may be absent (an input-only trace for a
+    prediction); ``Trace.measured`` is then None.
+    """
     stem, csv_path, json_path = trace_paths(path)
     missing = [p for p in (csv_path, json_path) if not p.is_file()]
     if missing:
@@ -116,10 +182,16 @@ def read_trace(path: str | os.PathLike) -> Trace:
     experiment = meta["experiment"]
     input_col, measured_col = EXPERIMENTS[experiment]
     required = ["time"] + ([input_col] if input_col else []) + [measured_col]
-    columns, nrows = _read_csv(csv_path, required, experiment)
+    columns, nrows = _read_csv(csv_path, required, experiment, optional=() if require_measured else (measured_col,))
+    return _make_trace(stem, csv_path, json_path, meta, columns, nrows)
 
+
+def _make_trace(stem: Path, csv_path: Path, json_path: Path, meta: dict, columns: dict, nrows: int) -> Trace:
+    """The Trace from checked metadata and columns (the measured one may be missing)."""
+    experiment = meta["experiment"]
+    input_col, measured_col = EXPERIMENTS[experiment]
     time = columns["time"]
-    measured = columns[measured_col]
+    measured = columns.get(measured_col)
     inp = columns[input_col] if input_col else None
 
     P = meta.get("periodic_samples")
@@ -137,7 +209,11 @@ def read_trace(path: str | os.PathLike) -> Trace:
                              json_path)
 
     if experiment == "free_vibration":
-        x0 = meta.get("initial_displacement_m", float(measured[0]))
+        if "initial_displacement_m" not in meta and measured is None:
+            raise TraceError(f"{json_path}: key 'initial_displacement_m' is missing and there is no "
+                             f"'{measured_col}' column to take it from; a free_vibration trace without "
+                             "measurements needs the initial displacement in metres", json_path)
+        x0 = meta.get("initial_displacement_m", float(measured[0]) if measured is not None else 0.0)
     else:
         x0 = meta.get("initial_displacement_m", 0.0)
     v0 = meta.get("initial_velocity_m_s", 0.0)
@@ -150,6 +226,52 @@ def read_trace(path: str | os.PathLike) -> Trace:
         periodic_samples=P, time=time, input_column=input_col, input=inp,
         measured_column=measured_col, measured=measured,
         description=str(meta.get("description", "")), meta=meta)
+
+
+def _trace_from_columns(where: Path, meta: dict, given: dict, *, name: str, require_measured: bool) -> Trace:
+    """Check in-memory metadata and arrays as read_trace checks files (errors name ``where``)."""
+    meta = _check_meta(meta, where)
+    experiment = meta["experiment"]
+    input_col, measured_col = EXPERIMENTS[experiment]
+    required = ["time"] + ([input_col] if input_col else []) + [measured_col]
+    missing = [c for c in required if c not in given and not (c == measured_col and not require_measured)]
+    if missing:
+        raise TraceError(f"{where}: argument{'s' if len(missing) > 1 else ''} {', '.join(missing)} missing; "
+                         f"a {experiment} trace needs {', '.join(required)}", where)
+    columns: dict[str, np.ndarray] = {}
+    for c in required:
+        if c not in given:
+            continue
+        try:
+            a = np.asarray(given[c], dtype=float)
+        except (TypeError, ValueError) as e:
+            raise TraceError(f"{where}: argument '{c}': not numbers ({e}); expected a 1-D array of numbers", where) from None
+        if a.ndim != 1:
+            raise TraceError(f"{where}: argument '{c}': shape {a.shape}; expected a 1-D array", where)
+        columns[c] = np.ascontiguousarray(a)
+    n = len(columns["time"])
+    for c, a in columns.items():
+        if len(a) != n:
+            raise TraceError(f"{where}: argument '{c}': {len(a)} samples, 'time' has {n}; expected equal lengths", where)
+        bad = np.nonzero(~np.isfinite(a))[0]
+        if bad.size:
+            i = int(bad[0])
+            raise TraceError(f"{where}: argument '{c}' at index {i}: value {a[i]!r} is not finite; expected a finite number", where)
+    if n < 2:
+        raise TraceError(f"{where}: {n} sample{'' if n == 1 else 's'}; expected at least 2", where)
+    t = columns["time"]
+    bad = np.nonzero(~(np.diff(t) > 0))[0]
+    if bad.size:
+        i = int(bad[0])
+        raise TraceError(f"{where}: argument 'time' at index {i + 1}: {_fmt(t[i + 1])} after {_fmt(t[i])}; "
+                         "expected strictly increasing time", where)
+    if input_col == "load":
+        neg = np.nonzero(columns["load"] < 0)[0]
+        if neg.size:
+            i = int(neg[0])
+            raise TraceError(f"{where}: argument 'load' at index {i}: value {_fmt(columns['load'][i])} is negative; "
+                             "expected a tension >= 0", where)
+    return _make_trace(Path(name), where, where, meta, columns, n)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -196,6 +318,11 @@ def _read_json(path: Path) -> dict:
         raise TraceError(f"{path}: line {e.lineno}, column {e.colno}: invalid JSON ({e.msg})", path) from None
     if not isinstance(raw, dict):
         raise TraceError(f"{path}: the top level is {type(raw).__name__} {_show(raw)[:40]}; expected a JSON object", path)
+    return _check_meta(raw, path)
+
+
+def _check_meta(raw: dict, path: Path) -> dict:
+    """Check the experiment's keys (NAME.json or the arguments of Trace.from_arrays); a checked copy."""
     meta = dict(raw)
 
     if "format" not in meta:
@@ -247,24 +374,29 @@ def _read_json(path: Path) -> dict:
     return meta
 
 
-def _read_csv(path: Path, required: list[str], experiment: str) -> tuple[dict[str, np.ndarray], int]:
-    """Parse and check the CSV; return the required columns and the number of rows."""
+def _read_text(path: Path) -> str:
+    """The CSV's text (gzip-compressed where the name ends in .gz)."""
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        if path.name.lower().endswith(".gz"):
+            with gzip.open(path, "rt", encoding="utf-8-sig", newline="") as f:
+                return f.read()
+        return path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as e:
         raise TraceError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start}); expected comma-separated numbers", path) from None
-    except OSError as e:
-        raise TraceError(f"{path}: cannot be read ({e.strerror})", path) from None
-    lines = text.splitlines()
-    # trailing blank lines (a final newline, editors) are not rows
-    while lines and not lines[-1].strip():
-        lines.pop()
-    if not lines:
-        raise TraceError(f"{path}: empty file; expected a header row ({', '.join(required)}) and samples", path)
+    except (OSError, EOFError) as e:
+        raise TraceError(f"{path}: cannot be read ({getattr(e, 'strerror', None) or e})", path) from None
 
-    header = [h.strip() for h in lines[0].split(",")]
+
+def _header(path: Path, line: str, required: list[str]) -> list[str]:
+    """Column names of line 1: quotes (fmpy, pandas) removed; an unnamed first column (a pandas
+    index before 'time') kept as ''. Checks names: none empty, unique, 'time' first."""
+    try:
+        header = [h.strip() for h in next(csv.reader([line], skipinitialspace=True))]
+    except csv.Error as e:
+        raise TraceError(f"{path}: line 1: not a header of column names ({e})", path) from None
+    index_column = len(header) > 1 and header[0] == "" and header[1] == "time"
     for j, h in enumerate(header):
-        if not h:
+        if not h and not (j == 0 and index_column):
             raise TraceError(f"{path}: line 1, column {j + 1}: empty column name; expected a header of names "
                              f"({', '.join(required)}, ...)", path)
     seen = set()
@@ -272,13 +404,31 @@ def _read_csv(path: Path, required: list[str], experiment: str) -> tuple[dict[st
         if h in seen:
             raise TraceError(f"{path}: line 1: column '{h}' appears twice; expected unique column names", path)
         seen.add(h)
-    if header[0] != "time":
-        raise TraceError(f"{path}: line 1, column 1: '{header[0]}'; expected the first column to be 'time'", path)
-    missing = [c for c in required if c not in header]
+    first = header[1] if index_column else header[0]
+    if first != "time":
+        raise TraceError(f"{path}: line 1, column 1: '{first}'; expected the first column to be 'time'", path)
+    return header
+
+
+def _read_csv(path: Path, required: list[str], experiment: str,
+              optional: tuple[str, ...] = ()) -> tuple[dict[str, np.ndarray], int]:
+    """Parse and check the CSV; return the required columns (less absent ``optional`` ones) and
+    the number of rows."""
+    text = _read_text(path)
+    lines = text.splitlines()
+    # trailing blank lines (a final newline, editors) are not rows
+    while lines and not lines[-1].strip():
+        lines.pop()
+    if not lines:
+        raise TraceError(f"{path}: empty file; expected a header row ({', '.join(required)}) and samples", path)
+
+    header = _header(path, lines[0], required)
+    missing = [c for c in required if c not in header and c not in optional]
     if missing:
         raise TraceError(f"{path}: line 1: column{'s' if len(missing) > 1 else ''} "
                          f"{', '.join(repr(c) for c in missing)} missing; a {experiment} trace needs "
                          f"{', '.join(required)} (found {', '.join(header)})", path)
+    required = [c for c in required if c in header]
     nrows = len(lines) - 1
     if nrows == 0:
         raise TraceError(f"{path}: only a header, no samples; expected at least 2 rows of numbers after line 1", path)
