@@ -10,6 +10,7 @@ DESCRIPTION = """\
 Simulate TRACE (NAME.csv + NAME.json, give either file or the stem) with the KevlarTether FMU and
 write OUT.csv with the columns time, the predicted measured column (displacement for
 free_vibration/forced, elongation for load_unload/creep) and tension, on the trace's time grid.
+The measured column may be absent (an input-only trace: a pure prediction).
 
 The trace sets L0 (tether.length_m) and, for the payload rig, m, g, x0 and v0; these win over
 --params. Everything not given keeps the FMU's start value. Output is written atomically: on any
@@ -30,7 +31,7 @@ def run(args) -> int:
     from ..traces import read_trace
     from . import warn
 
-    trace = read_trace(args.trace)
+    trace = read_trace(args.trace, require_measured=False)   # input-only traces: a pure prediction
     spec, params, _ = resolve_model(args, trace)
     out = check_output_path(args.out, trace)
     result = simulate(trace, spec, params)
