@@ -173,7 +173,7 @@ def test_full_model_on_one_free_vibration_trace_flags_what_is_not_determined(tmp
         assert re.search(rf"^{n}\s.*UNIDENTIFIABLE$", out, re.M), out
     assert "Not determined by the data" in doc["identifiability_report"]
     truth = _truth(stem)
-    inside = [n for n in doc["free"] if doc["ci95"][n][0] <= truth[n] <= doc["ci95"][n][1]]
+    inside = [n for n in doc["free"] if doc["intervals"][n][0] <= truth[n] <= doc["intervals"][n][1]]
     _say(capsys, f"freevib_full_0p1669, full+slack ({doc['seconds']:.1f} s, RMS {doc['rms']:.3g} m): flagged "
                  f"{', '.join(doc['unidentifiable'])}; truth inside the 95 % interval for {len(inside)}/"
                  f"{len(doc['free'])}\n{doc['identifiability_report']}")

@@ -85,8 +85,14 @@ class FitResult:
     condition: float = float("nan")
     singular_values: list = field(default_factory=list)
 
+    @property
+    def intervals(self) -> dict:
+        """name -> (low, high): the 95 % intervals, under the name every JSON output uses."""
+        return self.ci95
+
     def as_dict(self) -> dict:
-        """JSON-ready summary (what ``tether fit --report`` writes to fit.json)."""
+        """JSON-ready summary (what ``tether fit --report`` writes to fit.json; schema
+        docs/schemas/tether-fit-1.schema.json)."""
         return {
             "format": "tether-fit/1",
             "model": self.model,
@@ -96,7 +102,7 @@ class FitResult:
             "values": dict(self.values),
             "start": dict(self.start),
             "std_error": dict(self.std_error),
-            "ci95": {k: [float(a), float(b)] for k, (a, b) in self.ci95.items()},
+            "intervals": {k: [float(a), float(b)] for k, (a, b) in self.ci95.items()},
             "correlation": np.asarray(self.correlation).tolist(),
             "unidentifiable": list(self.unidentifiable),
             "identifiability_report": self.identifiability_report,
@@ -1167,3 +1173,11 @@ def write_fit_params(path: str | Path, result: FitResult) -> Path:
         "traces": list(result.traces),
     }
     return write_params(path, result.model, result.parameters, extra)
+
+
+# `tether.fit(...)` calls tether.api.fit (docs/api.md); the module stays a module
+import sys as _sys  # noqa: E402
+
+from . import _CallableModule  # noqa: E402
+
+_sys.modules[__name__].__class__ = _CallableModule

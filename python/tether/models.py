@@ -31,8 +31,10 @@ Parameter files
 ===============
 ``--params FILE.json`` holds either the canonical form written by :func:`write_params`::
 
-    {"model": "linear+boucwen", "parameters": {"EA": 5e4, "c0": 10}, ...any other keys...}
+    {"format": "tether-params/1", "model": "linear+boucwen", "parameters": {"EA": 5e4, "c0": 10}, ...}
 
+(schema: docs/schemas/tether-params-1.schema.json; ``format`` is written, not required on reading;
+the intervals of a fit are ``intervals``, and an older file's ``ci95`` is read as ``intervals``)
 or a flat object ``{"EA": 5e4, "c0": 10}``. Names must be parameters of the FMU (causality
 ``parameter``); values must be numbers inside the FMU's min/max. The structural switches (rig,
 stiffness, damping, hysteresis, creep, slack) come from the model string and may not be set in the
@@ -48,6 +50,9 @@ import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Mapping
+
+#: the ``format`` key of a parameter file written by :func:`write_params`
+PARAMS_FORMAT = "tether-params/1"
 
 # ---------------------------------------------------------------------------------------------
 # values of the FMU's Integer switches (each listed in its description in modelDescription.xml)
@@ -362,6 +367,8 @@ def read_params(path: str | os.PathLike, description=None) -> ParamsFile:
             except ModelError as e:
                 raise ParamsError(f"{path}: key 'model': {e}") from None
         extra = {k: v for k, v in raw.items() if k not in ("model", "parameters")}
+        if "ci95" in extra and "intervals" not in extra:       # the intervals' older name
+            extra["intervals"] = extra.pop("ci95")
         prefix = "parameters."
     else:
         params = raw
@@ -384,14 +391,15 @@ def _check_prefixed(k, v, path, prefix, description):
 
 def write_params(path: str | os.PathLike, model: str | ModelSpec | None, params: Mapping[str, float],
                  extra: Mapping[str, Any] | None = None) -> Path:
-    """Write the canonical form ``{"model": ..., "parameters": {...}, **extra}`` atomically."""
+    """Write the canonical form ``{"format": "tether-params/1", "model": ..., "parameters": {...},
+    **extra}`` atomically."""
     path = Path(path)
-    doc: dict[str, Any] = {}
+    doc: dict[str, Any] = {"format": PARAMS_FORMAT}
     if model is not None:
         doc["model"] = model.canonical if isinstance(model, ModelSpec) else str(model)
     doc["parameters"] = {k: float(v) for k, v in params.items()}
     for k, v in (extra or {}).items():
-        if k in ("model", "parameters"):
+        if k in ("format", "model", "parameters"):
             raise ValueError(f"write_params: extra key '{k}' would overwrite the canonical form")
         doc[k] = v
     text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
