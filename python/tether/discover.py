@@ -2444,3 +2444,11 @@ def account(d: Discovery) -> str:
     lines.append(f"discovered: {', '.join(d.added_effects) or 'nothing'}; final model {d.final.model}, RMS error "
                  f"{d.final.rms:.3g} m = {d.final.rms / sigma:.2f} x noise ({d.seconds:.1f} s)")
     return "\n".join(lines)
+
+
+# `tether.discover(...)` calls tether.api.discover (docs/api.md); the module stays a module
+import sys as _sys  # noqa: E402
+
+from . import _CallableModule  # noqa: E402
+
+_sys.modules[__name__].__class__ = _CallableModule

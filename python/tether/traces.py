@@ -104,15 +104,18 @@ class Trace:
                     displacement=None, elongation=None, payload_mass_kg: float | None = None,
                     gravity_m_s2: float | None = None, initial_displacement_m: float | None = None,
                     initial_velocity_m_s: float | None = None, periodic_samples: int | None = None,
-                    name: str = "trace", description: str = "", require_measured: bool = True) -> "Trace":
+                    name: str = "trace", description: str = "", require_measured: bool = True,
+                    extra: dict[str, Any] | None = None) -> "Trace":
         """A trace from arrays in memory, checked as a file would be (keys as in NAME.json).
 
         ``Trace.from_arrays(t, experiment="forced", length_m=1.0, payload_mass_kg=2.0, force=u,
         displacement=y)``; the input column the experiment needs (``force`` or ``load``) is
         required, the measured one (``displacement`` or ``elongation``) unless ``require_measured``
-        is False. Errors name ``name``, the argument and the first bad index.
+        is False. ``extra``: other keys a NAME.json may hold (e.g. ``input_interpolation``). Errors
+        name ``name``, the argument and the first bad index.
         """
-        meta: dict[str, Any] = {"format": FORMAT, "experiment": experiment, "tether": {"length_m": length_m}}
+        meta: dict[str, Any] = dict(extra or {})
+        meta.update({"format": FORMAT, "experiment": experiment, "tether": {"length_m": length_m}})
         for key, value in (("payload_mass_kg", payload_mass_kg), ("gravity_m_s2", gravity_m_s2),
                            ("initial_displacement_m", initial_displacement_m),
                            ("initial_velocity_m_s", initial_velocity_m_s), ("periodic_samples", periodic_samples)):
