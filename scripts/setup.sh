@@ -70,8 +70,8 @@ stage_begin "python packages"
 STAMP="$VENV/.kt-pip-stamp"
 if [ -f pyproject.toml ]; then
   want="pyproject $(sha256sum pyproject.toml | cut -d' ' -f1) $("$VENV/bin/python" --version 2>&1)"
-  # editable, without the CMake build (done below into $BUILD_DIR, where the package finds it)
-  PIP_ARGS=(-e '.[test]' -C wheel.cmake=false)
+  # editable: the Python package only (pyproject.toml); CMake builds $BUILD_DIR below, where it finds the FMU
+  PIP_ARGS=(-e '.[test]')
 else
   # no pyproject.toml yet: the tools the checks need
   want="direct fmpy fmu-manipulation-toolbox libcosimpy numpy scipy matplotlib pytest"
