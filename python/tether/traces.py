@@ -44,6 +44,8 @@ EXPERIMENTS: dict[str, tuple[str | None, str]] = {
     "load_unload": ("load", "elongation"),
     "creep": ("load", "elongation"),
 }
+#: the SI unit of every column the format names (the format is SI throughout)
+COLUMN_UNITS = {"time": "s", "force": "N", "load": "N", "displacement": "m", "elongation": "m"}
 #: experiments on the payload rig (need payload_mass_kg); the others run on the load rig
 PAYLOAD_EXPERIMENTS = ("free_vibration", "forced")
 
@@ -175,12 +177,7 @@ def read_trace(path: str | os.PathLike, *, require_measured: bool = True) -> Tra
     prediction); ``Trace.measured`` is then None.
     """
     stem, csv_path, json_path = trace_paths(path)
-    missing = [p for p in (csv_path, json_path) if not p.is_file()]
-    if missing:
-        names = " and ".join(str(p) for p in missing)
-        raise TraceError(
-            f"{names}: not found (a trace is NAME.csv plus NAME.json side by side; given '{path}')",
-            missing[0])
+    _check_trace_files(path, csv_path, json_path)
     meta = _read_json(json_path)
     experiment = meta["experiment"]
     input_col, measured_col = EXPERIMENTS[experiment]
@@ -277,6 +274,27 @@ def _trace_from_columns(where: Path, meta: dict, given: dict, *, name: str, requ
     return _make_trace(Path(name), where, where, meta, columns, n)
 
 
+def _check_trace_files(given: str | os.PathLike, csv_path: Path, json_path: Path) -> None:
+    """Both files of a trace are regular files that can be read; else a TraceError saying what they are."""
+    from .filecheck import input_problem
+
+    where = "a trace is NAME.csv plus NAME.json side by side"
+    problems = [(p, input_problem(p)) for p in (csv_path, json_path)]
+    given = Path(given)
+    if given not in (csv_path, json_path) and any(why for _, why in problems) and \
+            (given.exists() or given.is_symlink()):
+        # the stem form names something that is there, but not a trace: say what it is
+        why = input_problem(given) or "is a file without the .csv or .json suffix"
+        raise TraceError(f"{given}: {why}; expected a trace: NAME.csv, NAME.json or the stem NAME ({where})", given)
+    if all(why == "not found" for _, why in problems):
+        raise TraceError(f"{csv_path} and {json_path}: not found ({where}; given '{given}')", csv_path)
+    for p, why in problems:
+        if why == "not found":
+            raise TraceError(f"{p}: not found ({where}; given '{given}')", p)
+        if why is not None:
+            raise TraceError(f"{p}: {why}; expected a trace file ({where})", p)
+
+
 # ---------------------------------------------------------------------------------------------
 def _show(value: Any) -> str:
     """A value as it would appear in JSON (for messages)."""
@@ -306,6 +324,19 @@ def _number(meta: dict, key: str, where: str, path: Path, *, positive: bool = Fa
     return v
 
 
+def _parse_json(text: str, path: Path) -> Any:
+    from .filecheck import JSONDepthError, load_json
+
+    try:
+        return load_json(text)
+    except JSONDepthError as e:
+        raise TraceError(f"{path}: {e}; expected a trace's JSON object", path) from None
+    except json.JSONDecodeError as e:
+        raise TraceError(f"{path}: line {e.lineno}, column {e.colno}: invalid JSON ({e.msg})", path) from None
+    except ValueError as e:
+        raise TraceError(f"{path}: invalid JSON number ({e})", path) from None
+
+
 def _read_json(path: Path) -> dict:
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -315,10 +346,7 @@ def _read_json(path: Path) -> dict:
         raise TraceError(f"{path}: cannot be read ({e.strerror})", path) from None
     if not text.strip():
         raise TraceError(f"{path}: empty file; expected a JSON object with 'format', 'experiment' and 'tether'", path)
-    try:
-        raw = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise TraceError(f"{path}: line {e.lineno}, column {e.colno}: invalid JSON ({e.msg})", path) from None
+    raw = _parse_json(text, path)
     if not isinstance(raw, dict):
         raise TraceError(f"{path}: the top level is {type(raw).__name__} {_show(raw)[:40]}; expected a JSON object", path)
     return _check_meta(raw, path)
