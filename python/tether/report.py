@@ -48,7 +48,7 @@ def _jsonable(o):
 def save_figure_atomic(fig, path: Path) -> None:
     from .atomic import replace_with
 
-    replace_with(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"), suffix=".png")
+    replace_with(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
 
 
 def pyplot():
@@ -107,15 +107,24 @@ def _fmt(x, spec=".3g"):
 
 def validation_table(rows: Sequence[dict]) -> str:
     """The terminal table."""
-    head = ["trace", "model", "RMS error", "NRMSE", "R^2", "max error", "at [s]", "noise σ", "within"]
+    from .traces import COLUMN_UNITS
+
+    units = {COLUMN_UNITS.get(r.get("measured_column"), "?") for r in rows}
+    u = f" [{units.pop()}]" if len(units) == 1 else " [unit of the trace]"
+    head = ["trace", "model", f"RMS error{u}", "NRMSE [-]", "R^2 [-]", f"max error{u}", "at [s]", f"noise σ{u}",
+            "within noise"]
     lines = [[r["trace"].split("/")[-1], r["model"], _fmt(r["rms_error"]), _fmt(r["normalized_rms_error"]),
               _fmt(r["r2"], ".6f"), _fmt(r["max_error"]), _fmt(r["max_error_time"], ".4g"),
               _fmt(r["noise_sigma"], ".2g"), _fmt(r["within_noise"])] for r in rows]
+    if rows and "within_tolerance" in rows[0]:
+        head.append("within tolerance")
+        for line, r in zip(lines, rows):
+            line.append(_fmt(r["within_tolerance"]))
     widths = [max(len(h), *(len(l[i]) for l in lines)) if lines else len(h) for i, h in enumerate(head)]
     fmt = "  ".join("{:<%d}" % w for w in widths)
     out = [fmt.format(*head), fmt.format(*("-" * w for w in widths))]
     out += [fmt.format(*l) for l in lines]
-    return "\n".join(out)
+    return "\n".join(line.rstrip() for line in out)
 
 
 PAGE_STYLE = """
