@@ -36,6 +36,7 @@ class Variable:
     min: float | None
     max: float | None
     description: str = ""
+    unit: str = ""         # the variable's unit (its own, else its declared type's); "" if none
 
 
 @dataclass(frozen=True)
@@ -133,7 +134,8 @@ def model_description(path: Path | None = None) -> Description:
             name=v.name, vr=int(v.valueReference), type=t, causality=v.causality,
             variability=v.variability, start=start,
             min=None if lo is None else float(lo), max=None if hi is None else float(hi),
-            description=v.description or "")
+            description=v.description or "",
+            unit=getattr(v, "unit", None) or getattr(v.declaredType, "unit", None) or "")
     tol = md.defaultExperiment.tolerance if md.defaultExperiment is not None else None
     desc = Description(path=path, guid=md.guid, model_identifier=md.coSimulation.modelIdentifier,
                        variables=variables, default_tolerance=None if tol is None else float(tol))

@@ -37,7 +37,6 @@ from pathlib import Path
 from typing import Mapping
 
 import numpy as np
-from scipy.interpolate import CubicSpline, PchipInterpolator
 
 from .fmu import Description, FMUError, extract, fmu_path, model_description  # noqa: F401 (re-export)
 from .models import ModelSpec, check_parameters, parse_model
@@ -211,6 +210,8 @@ def _spline_pieces(t: np.ndarray, y: np.ndarray, periodic_period: float | None, 
     ``monotone``: a shape-preserving PCHIP instead (for loads: ramps and holds must not ring; a
     cubic spline through a ramp-and-hold load overshoots by hundreds of newtons at the corners).
     """
+    from scipy.interpolate import CubicSpline, PchipInterpolator   # here: a run without input needs no scipy
+
     if monotone:
         tk, yk = (np.append(t, t[0] + periodic_period), np.append(y, y[0])) if periodic_period is not None else (t, y)
         cs = PchipInterpolator(tk, yk)

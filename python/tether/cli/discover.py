@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 NAME = "discover"
 HELP = "find the effects a trace shows that the linear baseline lacks, step by step, with evidence"
 DESCRIPTION = """\
@@ -66,46 +63,40 @@ def _seconds(text: str) -> float:
 
 
 def run(args) -> int:
-    from ..discover import DiscoveryError, account, discover, discovery_document
+    from ..discover import DEFAULT_BUDGET, DiscoveryError, account, discover, discovery_document
     from ..models import parse_model
     from ..report import write_json_atomic
-    from ..traces import read_trace
     from . import CLIError, RUN_ERROR
-    from .common import check_output_path
+    from .common import check_output_path, check_report_dir, read_checked_trace
+    from .console import Progress
 
     if args.each:
         from .discover_each import run_each
         return run_each(args)
     if args.trace is None or args.json is None:
         raise CLIError("give TRACE and --json OUT.json (or --each TRACE... --out-dir DIR)")
-    trace = read_trace(args.trace)
+    trace = read_checked_trace(args.trace)
     parse_model(args.start, trace.experiment)                # a bad model string fails before any fit
-    out = Path(args.json)
-    if out.is_dir():
-        raise CLIError(f"--json {args.json}: is a directory; expected a file name such as discovery.json")
-    check_output_path(args.json, trace)
-    report = Path(args.report) if args.report else None
-    if report is not None and report.exists() and not report.is_dir():
-        raise CLIError(f"--report {report}: exists and is not a directory")
+    out = check_output_path(args.json, trace, option="--json")
+    report = check_report_dir(args.report)
 
-    def progress(line: str) -> None:
-        sys.stderr.write(line + "\n")
-        sys.stderr.flush()
-
-    try:
-        d = discover(trace, start=args.start, progress=progress,
-                     **({} if args.budget is None else {"budget": args.budget}))
-    except DiscoveryError as e:
-        raise CLIError(str(e), RUN_ERROR) from None
-    except RuntimeError as e:
-        raise CLIError(f"the discovery failed: {e}", RUN_ERROR) from None
+    budget = DEFAULT_BUDGET if args.budget is None else args.budget
+    with Progress("discover", budget, unit="s", deadline=True) as bar:
+        try:
+            d = discover(trace, start=args.start, progress=bar.line, budget=budget)
+        except DiscoveryError as e:
+            raise CLIError(str(e), RUN_ERROR) from None
+        except RuntimeError as e:
+            raise CLIError(f"the discovery failed: {e}", RUN_ERROR) from None
     doc = discovery_document(d)
-    print(account(d))
+    # the files first: a closed stdout (| head) must not lose them
     write_json_atomic(out, doc)
     if report is not None:
         from ..discover_report import write_discovery_report
 
         write_discovery_report(report, d, doc)
+    print(account(d))
+    if report is not None:
         print(f"report: {report / 'index.html'}")
     print(f"record: {out} (also a --params file of the discovered model)")
     return 0

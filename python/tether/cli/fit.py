@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import sys
 import time
-from pathlib import Path
 
 NAME = "fit"
 HELP = "fit a model's parameters to traces; write them with 95 % intervals as a --params file"
@@ -52,11 +50,11 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from ..fit import FitError, fit_traces, write_fit_params
     from ..models import TRACE_PARAMETERS, parse_model, read_params
-    from ..traces import read_trace
     from . import CLIError, RUN_ERROR
-    from .common import check_output_path
+    from .common import check_output_path, check_report_dir, read_checked_trace
+    from .console import Progress, note
 
-    traces = [read_trace(p) for p in args.traces]            # read (and check) every trace first
+    traces = [read_checked_trace(p) for p in args.traces]    # read (and check) every trace first
     pf = read_params(args.params) if args.params else None
     model = args.model or (pf.model if pf is not None else None)
     if not model:
@@ -64,11 +62,9 @@ def run(args) -> int:
     spec = parse_model(model)
     out = check_output_path(args.out)
     for tr in traces:
-        if out.exists() and out.resolve() in (tr.csv_path.resolve(), tr.json_path.resolve()):
+        if out in (tr.csv_path.resolve(), tr.json_path.resolve()):
             raise CLIError(f"--out {args.out}: would overwrite the trace {tr.stem.name} itself; choose another file")
-    report = Path(args.report) if args.report else None
-    if report is not None and report.exists() and not report.is_dir():
-        raise CLIError(f"--report {report}: exists and is not a directory")
+    report = check_report_dir(args.report)
     if args.starts < 1:
         raise CLIError(f"--starts {args.starts}: expected a whole number >= 1")
     free = None
@@ -90,59 +86,98 @@ def run(args) -> int:
 
     names = ", ".join(tr.stem.name for tr in traces)
     t0 = time.time()
-    started = []
+    with Progress("fit", 1.0) as bar:
+        def progress(p):
+            if p.iteration < 0:      # a stage starts (after the names are checked: an error stays one line)
+                if p.stage_index == 0:
+                    bar.line(f"fitting {spec.canonical} to {names}")
+                bar.line(f"  {p}")
+            bar.update(fit_fraction(p, args.starts), _status(p))
 
-    def progress(p):
-        if not started:     # after the names are checked: an error stays one line
-            started.append(1)
-            sys.stderr.write(f"fitting {spec.canonical} to {names}\n")
-        sys.stderr.write(f"  {p}\n")
-        sys.stderr.flush()
+        try:
+            result = fit_traces(traces, spec, free=free, start=start, fixed=fixed, progress=progress,
+                                n_starts=args.starts)
+        except FitError as e:
+            raise CLIError(f"--free: {e}" if args.free is not None and "free parameter" in str(e) else str(e)) from None
+        except RuntimeError as e:
+            raise CLIError(f"the fit failed: {e}", RUN_ERROR) from None
+    note(f"done in {time.time() - t0:.1f} s, {result.evaluations} simulations: {result.message}")
 
-    try:
-        result = fit_traces(traces, spec, free=free, start=start, fixed=fixed, progress=progress,
-                            n_starts=args.starts)
-    except FitError as e:
-        raise CLIError(f"--free: {e}" if args.free is not None and "free parameter" in str(e) else str(e)) from None
-    except RuntimeError as e:
-        raise CLIError(f"the fit failed: {e}", RUN_ERROR) from None
-    sys.stderr.write(f"done in {time.time() - t0:.1f} s, {result.evaluations} simulations: {result.message}\n")
-
-    print(result_table(result))
+    # the files first: a closed stdout (| head -1) must not lose them
     write_fit_params(out, result)
     if report is not None:
         from ..fit_report import write_fit_report
         write_fit_report(report, traces, result)
+    print(result_table(result, _units(result, traces)))
+    if report is not None:
         print(f"report: {report / 'index.html'} (numbers: {report / 'fit.json'})")
     print(f"parameters: {out}")
     return 0
 
 
-def result_table(r) -> str:
-    """The terminal summary: parameter table, correlation matrix, RMS per trace, identifiability."""
-    head = ["parameter", "value", "std error", "95 % interval", ""]
+def fit_fraction(p, n_starts: int = 1) -> float:
+    """How far a fit is (0..1) at progress report ``p``: stages in equal shares, each split among its
+    starts and horizon stages, and an iteration taking half of what is left of its share (an estimate:
+    the number of iterations is not known ahead)."""
+    share = 1.0 / p.n_stages
+    done = p.stage_index * share
+    if p.iteration < 0:
+        return done
+    starts = n_starts if p.stage_index == p.n_stages - 1 else 1
+    h, n_h = (int(x) for x in p.horizon.split("/")) if p.horizon else (1, 1)
+    piece = share / (starts * n_h)
+    done += piece * (min(p.start, starts - 1) * n_h + (h - 1))
+    return done + piece * (1.0 - 0.5 ** (p.iteration + 1))
+
+
+def _status(p) -> str:
+    if p.iteration < 0:
+        return f"stage {p.stage_index + 1}/{p.n_stages}"
+    return f"stage {p.stage_index + 1}/{p.n_stages}, iteration {p.iteration + 1}, RMS {p.rms:.3g}"
+
+
+def _units(result, traces) -> dict:
+    """name -> unit of every parameter in the result (modelDescription.xml), and "rms" -> the
+    measured column's unit."""
+    from ..fmu import model_description
+    from ..traces import COLUMN_UNITS
+
+    variables = model_description().variables
+    units = {n: variables[n].unit if n in variables else "" for n in result.parameters}
+    measured = {COLUMN_UNITS.get(tr.measured_column, "") for tr in traces}
+    units["rms"] = measured.pop() if len(measured) == 1 else "unit of each trace"
+    return units
+
+
+def result_table(r, units: dict | None = None) -> str:
+    """The terminal summary: parameter table (with units), correlation matrix, RMS per trace,
+    identifiability."""
+    units = units or {}
+    u_rms = f" {units['rms']}" if units.get("rms") else ""
+    head = ["parameter", "unit", "value", "std error", "95 % interval", ""]
     rows = []
     for n in r.free:
         lo, hi = r.ci95[n]
-        rows.append([n, f"{r.values[n]:.6g}", f"{r.std_error[n]:.3g}", f"[{lo:.6g}, {hi:.6g}]",
+        rows.append([n, units.get(n) or "-", f"{r.values[n]:.6g}", f"{r.std_error[n]:.3g}", f"[{lo:.6g}, {hi:.6g}]",
                      "UNIDENTIFIABLE" if n in r.unidentifiable else ""])
     w = [max(len(h), *(len(x[i]) for x in rows)) for i, h in enumerate(head)]
     fmt = "  ".join("{:<%d}" % k for k in w)
-    lines = [f"model {r.model}: RMS error {r.rms:.4g} over {len(r.traces)} trace(s)", fmt.format(*head).rstrip(),
-             fmt.format(*("-" * k for k in w[:-1]), "").rstrip()]
+    lines = [f"model {r.model}: RMS error {r.rms:.4g}{u_rms} over {len(r.traces)} trace(s)",
+             fmt.format(*head).rstrip(), fmt.format(*("-" * k for k in w[:-1]), "").rstrip()]
     lines += [fmt.format(*x).rstrip() for x in rows]
     held = {k: v for k, v in r.parameters.items() if k not in r.free}
     if held:
-        lines.append("held fixed: " + ", ".join(f"{k} = {v:.6g}" for k, v in held.items()))
+        lines.append("held fixed: " + ", ".join(f"{k} = {v:.6g}" + (f" {units[k]}" if units.get(k) else "")
+                                                for k, v in held.items()))
     lines.append("")
-    lines.append("correlation matrix:")
+    lines.append("correlation matrix [-]:")
     cw = max(8, max(len(n) for n in r.free) + 1)
     lines.append(" " * cw + "".join(f"{n:>{cw}}" for n in r.free))
     for i, n in enumerate(r.free):
         lines.append(f"{n:<{cw}}" + "".join(f"{r.correlation[i][j]:>{cw}.3f}" for j in range(len(r.free))))
     lines.append("")
     for name, rms, noise in zip(r.traces, r.rms_per_trace, r.noise):
-        lines.append(f"{name}: RMS error {rms:.4g} (noise estimated from the data {noise:.3g})")
+        lines.append(f"{name}: RMS error {rms:.4g}{u_rms} (noise estimated from the data {noise:.3g}{u_rms})")
     lines.append("")
     lines.append(r.identifiability_report)
     return "\n".join(lines)

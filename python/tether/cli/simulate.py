@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .common import add_model_arguments, check_output_path, resolve_model, write_csv_atomic
+from .common import add_model_arguments, check_output_path, read_checked_trace, resolve_model, write_csv_atomic
 
 NAME = "simulate"
 HELP = "simulate a trace with a model and write time, the predicted measured column and tension"
@@ -28,10 +28,9 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from ..run import simulate
-    from ..traces import read_trace
     from . import warn
 
-    trace = read_trace(args.trace, require_measured=False)   # input-only traces: a pure prediction
+    trace = read_checked_trace(args.trace, require_measured=False)   # input-only traces: a pure prediction
     spec, params, _ = resolve_model(args, trace)
     out = check_output_path(args.out, trace)
     result = simulate(trace, spec, params)

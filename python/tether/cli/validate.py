@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
@@ -21,9 +20,16 @@ synthetic trace runs with the model that generated it, any other trace with the 
 
 Writes a table to the terminal, DIR/validation.json and DIR/index.html with a plot per trace
 (measured and simulated against time, the residual, and for load tests the tension-elongation
-loop). Exit status: 0 all traces simulated; 2 bad input; 1 FMU missing or failed.
+loop).
+
+--tolerance bounds the normalized RMS error (NRMSE: the RMS error over the standard deviation of
+the measured column; 0.05 by default, i.e. 5 % of the measurement's spread, about R^2 >= 0.9975).
+Exit status: 0 every trace within the tolerance; 1 any trace outside it, or the FMU missing or
+failed; 2 bad input.
 """
 
+#: the default bound on the normalized RMS error (RMS error / standard deviation of the measurement)
+DEFAULT_TOLERANCE = 0.05
 
 
 def add_arguments(parser) -> None:
@@ -33,14 +39,31 @@ def add_arguments(parser) -> None:
                         help="report directory (default: reports/validate)")
     from .sweep import add_scheduler_argument
     add_scheduler_argument(parser)
+    parser.add_argument("--tolerance", metavar="NRMSE", type=_tolerance, default=DEFAULT_TOLERANCE,
+                        help="largest normalized RMS error (RMS error / standard deviation of the measurement) "
+                             f"a trace may have; any trace above it makes the exit status 1 (default {DEFAULT_TOLERANCE})")
+
+
+def _tolerance(text: str) -> float:
+    import argparse
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number (a normalized RMS error), got {text!r}")
+    return v
 
 
 def run(args) -> int:
     from ..models import parse_model, read_params
     from ..report import plot_validation, validation_page, validation_table, write_json_atomic, write_text_atomic
-    from ..traces import read_trace
     from ..validate import find_traces, validate_trace
-    from . import CLIError, warn
+    from . import CLIError, RUN_ERROR, warn
+    from .common import check_report_dir, read_checked_trace
+    from .console import Progress
 
     from ..resources import reference_results_dir
 
@@ -48,7 +71,7 @@ def run(args) -> int:
     stems = find_traces(paths)
     if not stems:
         raise CLIError(f"no traces found in {', '.join(str(p) for p in paths)} (a trace is NAME.csv with NAME.json)")
-    traces = [read_trace(s) for s in stems]          # read (and check) all before any simulation
+    traces = [read_checked_trace(s) for s in stems]  # read (and check) all before any simulation
     pf = read_params(args.params) if args.params else None
     model = args.model or (pf.model if pf is not None and pf.model else None)
     if model is not None:
@@ -56,31 +79,31 @@ def run(args) -> int:
     if pf is not None and model is None:
         model = "linear"
     params = dict(pf.parameters) if pf else None
+    report = check_report_dir(args.report)
 
-    report = Path(args.report)
-    if report.exists() and not report.is_dir():
-        raise CLIError(f"--report {report}: exists and is not a directory")
     rows, images = [], []
     t_all = time.time()
     if args.scheduler:                               # every trace a task on the cluster
         from .sweep import cluster_map
         done = cluster_map(args.scheduler, validate_trace, [(tr, model, params) for tr in traces], "trace")
-    for i, tr in enumerate(traces, 1):
-        t0 = time.time()
-        sys.stderr.write(f"[{i}/{len(traces)}] {tr.stem.name} ... ")
-        sys.stderr.flush()
-        v = done[i - 1] if args.scheduler else validate_trace(tr, model, params)
-        row = v.as_dict()
-        rows.append(row)
-        img = f"plots/{tr.stem.name}.png"
-        plot_validation(v, report / img)
-        images.append(img)
-        sys.stderr.write(f"RMS error {v.rms:.3g} m ({time.time() - t0:.1f} s)\n")
-        for w in v.result.warnings:
-            warn(f"{tr.stem.name}: {w}")
-    table = validation_table(rows)
-    print(table)
-    doc = {"format": "tether-validation/1", "traces": rows}
+    with Progress("validate", len(traces), unit="trace") as bar:
+        for i, tr in enumerate(traces, 1):
+            t0 = time.time()
+            v = done[i - 1] if args.scheduler else validate_trace(tr, model, params)
+            row = v.as_dict()
+            row["within_tolerance"] = bool(v.nrmse <= args.tolerance)
+            rows.append(row)
+            img = f"plots/{tr.stem.name}.png"
+            plot_validation(v, report / img)
+            images.append(img)
+            bar.line(f"[{i}/{len(traces)}] {tr.stem.name}: RMS error {v.rms:.3g} m, NRMSE {v.nrmse:.3g} "
+                     f"({time.time() - t0:.1f} s)")
+            bar.update(i, tr.stem.name)
+            for w in v.result.warnings:
+                warn(f"{tr.stem.name}: {w}")
+    print(validation_table(rows))
+    doc = {"format": "tether-validation/1", "tolerance": {"on": "normalized_rms_error", "max": args.tolerance},
+           "traces": rows}
     write_json_atomic(report / "validation.json", doc)
     page = validation_page(rows, images, "KevlarTether validation",
                            f"{len(rows)} traces validated with the KevlarTether FMU in {time.time() - t_all:.1f} s.")
@@ -89,4 +112,10 @@ def run(args) -> int:
     print(f"report: {report / 'index.html'} (numbers: {report / 'validation.json'})")
     if bad:
         print(f"outside their stated noise: {', '.join(bad)}")
+    outside = [(r["trace"].split("/")[-1], r["normalized_rms_error"]) for r in rows if not r["within_tolerance"]]
+    if outside:
+        print(f"outside the tolerance (NRMSE <= {args.tolerance:g}): "
+              + ", ".join(f"{n} (NRMSE {e:.3g})" for n, e in outside))
+        return RUN_ERROR
+    print(f"all {len(rows)} within the tolerance (NRMSE <= {args.tolerance:g})")
     return 0
