@@ -117,7 +117,7 @@ def output_problem(path: str | os.PathLike) -> str | None:
     real = Path(os.path.realpath(path))
     try:
         st = os.stat(real)
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):     # a new file; its folder is checked below
         st = None
     except OSError as e:
         return f"cannot be checked ({e.strerror})"
@@ -205,3 +205,9 @@ def load_json(text: str, limit: int = MAX_JSON_DEPTH):
         return json.loads(text)
     except RecursionError:       # a limit set higher than the interpreter's stack
         raise JSONDepthError(1, 1, limit) from None
+    except json.JSONDecodeError:
+        raise
+    except ValueError as e:      # Python reads integers of at most 4300 digits
+        digits = re.search(r"value has (\d+) digits", str(e))
+        raise ValueError(f"an integer of {digits.group(1) if digits else 'too many'} digits; numbers this "
+                         "long are not read") from None

@@ -14,6 +14,7 @@ The bar is tqdm's, imported only when a bar is shown.
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
@@ -114,8 +115,14 @@ class Progress:
             return None
         left = "at most {remaining} left" if self.deadline else "{remaining} left"
         fmt = "{desc}: {percentage:3.0f}%|{bar}| {elapsed} elapsed, " + left + "{postfix}"
-        return tqdm(total=self.total, desc=self.name, file=sys.stderr, bar_format=fmt, dynamic_ncols=True,
-                    leave=False, mininterval=0.2, smoothing=0.1)
+        try:
+            size = os.get_terminal_size(sys.stderr.fileno())
+        except (OSError, ValueError, AttributeError):
+            size = os.terminal_size((0, 0))
+        # a terminal that reports no size (a pseudo-terminal nobody sized) would hide the bar
+        shape = {"dynamic_ncols": True} if size.columns > 0 and size.lines > 0 else {"ncols": 80, "nrows": 24}
+        return tqdm(total=self.total, desc=self.name, file=sys.stderr, bar_format=fmt, leave=False,
+                    mininterval=0.2, smoothing=0.1, **shape)
 
     # -- updates -------------------------------------------------------------------------------
     def elapsed(self) -> float:
