@@ -118,11 +118,13 @@ def test_progress_fraction_grows_to_one():
 
     seq = [FitProgress("a", 0, 2, -1, float("nan"), 0, 0.0)]
     seq += [FitProgress("a", 0, 2, i, 1.0, i, 0.0, horizon=f"{h}/3") for h in (1, 2, 3) for i in range(5)]
+    second = len(seq)
     seq += [FitProgress("b", 1, 2, -1, float("nan"), 0, 0.0)]
-    seq += [FitProgress("b", 1, 2, i, 1.0, i, 0.0, start=s) for s in (0, 1) for i in range(8)]
+    seq += [FitProgress("b", 1, 2, i, 1.0, i, 0.0, start=s) for s in (0, 1) for i in range(40)]
     f = [fit_fraction(p, n_starts=2) for p in seq]
     assert f[0] == 0.0 and all(b >= a for a, b in zip(f, f[1:])) and 0.99 < f[-1] < 1.0
-    assert f[len(seq) - 17] == 0.5          # the second stage starts half way
+    assert f[second] == 0.5                  # the second stage starts half way
+    assert f[second + 41] >= 0.75            # its second start begins three quarters in
 
 
 # ---------------------------------------------------------------------------------------------

@@ -5,7 +5,8 @@ by :func:`configure` from the global options:
 
 * ``--quiet`` (0): errors only: no progress, no warnings, no notes;
 * default (1): warnings, notes, and progress: a bar with the time left when stderr is a terminal,
-  else a plain line when a stage starts and at most every :data:`PLAIN_INTERVAL` seconds;
+  else plain lines: each stage as it starts, its first report, then one at most every
+  :data:`PLAIN_INTERVAL` seconds;
 * ``--verbose`` (2): also every progress report (each fit iteration, ...) as its own line;
 * ``--debug`` (3): as --verbose, and an error shows its traceback.
 
@@ -98,6 +99,7 @@ class Progress:
         self.done = 0.0
         self.status = ""
         self._last_plain = -PLAIN_INTERVAL
+        self._fresh = False          # print the next report in plain mode whatever the interval
         self._lock = threading.Lock()
         self._bar = None
         self._ticker = None
@@ -142,7 +144,7 @@ class Progress:
                 return
         if status and _level >= VERBOSE:
             _write(f"  {status}\n")
-        elif _level >= NORMAL and self.elapsed() - self._last_plain >= PLAIN_INTERVAL:
+        elif _level >= NORMAL and (self._fresh or self.elapsed() - self._last_plain >= PLAIN_INTERVAL):
             self._plain()
 
     def line(self, message: str) -> None:
@@ -155,6 +157,7 @@ class Progress:
                 return
         _write(_one_line(message) + "\n")
         self._last_plain = self.elapsed()
+        self._fresh = not self.deadline     # a stage began: say how the next report stands (once)
 
     def _left(self) -> float | None:
         if self.deadline:
@@ -165,6 +168,7 @@ class Progress:
 
     def _plain(self) -> None:
         self._last_plain = self.elapsed()
+        self._fresh = False
         left = self._left()
         when = f"{_clock(self.elapsed())} elapsed" + (
             "" if left is None else f", {'at most ' if self.deadline else 'about '}{_clock(left)} left")

@@ -92,7 +92,8 @@ def run(args) -> int:
                 if p.stage_index == 0:
                     bar.line(f"fitting {spec.canonical} to {names}")
                 bar.line(f"  {p}")
-            bar.update(fit_fraction(p, args.starts), _status(p))
+            else:
+                bar.update(fit_fraction(p, args.starts), _status(p))
 
         try:
             result = fit_traces(traces, spec, free=free, start=start, fixed=fixed, progress=progress,
@@ -117,8 +118,8 @@ def run(args) -> int:
 
 def fit_fraction(p, n_starts: int = 1) -> float:
     """How far a fit is (0..1) at progress report ``p``: stages in equal shares, each split among its
-    starts and horizon stages, and an iteration taking half of what is left of its share (an estimate:
-    the number of iterations is not known ahead)."""
+    starts and horizon stages, and an iteration taking 15 % of what is left of its share (an estimate:
+    the number of iterations is not known ahead; a fit takes some 5 to 30)."""
     share = 1.0 / p.n_stages
     done = p.stage_index * share
     if p.iteration < 0:
@@ -127,12 +128,10 @@ def fit_fraction(p, n_starts: int = 1) -> float:
     h, n_h = (int(x) for x in p.horizon.split("/")) if p.horizon else (1, 1)
     piece = share / (starts * n_h)
     done += piece * (min(p.start, starts - 1) * n_h + (h - 1))
-    return done + piece * (1.0 - 0.5 ** (p.iteration + 1))
+    return done + piece * (1.0 - 0.85 ** (p.iteration + 1))
 
 
 def _status(p) -> str:
-    if p.iteration < 0:
-        return f"stage {p.stage_index + 1}/{p.n_stages}"
     return f"stage {p.stage_index + 1}/{p.n_stages}, iteration {p.iteration + 1}, RMS {p.rms:.3g}"
 
 
