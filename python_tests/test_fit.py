@@ -206,10 +206,10 @@ def test_fitted_parameter_file_is_what_params_reads(tmp_path, run_cli):
     row = json.loads((tmp_path / "v" / "validation.json").read_text())["traces"][0]
     assert row["within_noise"] is True and row["model"] == "cubic"
     assert row["rms_error"] == pytest.approx(pf.extra["rms"], rel=1e-6)
-    # the table: a row per parameter with value, std error and the interval
+    # the table: a row per parameter with its unit (modelDescription.xml: N), value, std error, interval
     for n in ("a1", "a2", "a3"):
         lo, hi = pf.extra["intervals"][n]
-        assert re.search(rf"^{n}\s+\S+\s+\S+\s+" + re.escape(f"[{lo:.6g}, {hi:.6g}]"), out, re.M), out
+        assert re.search(rf"^{n}\s+N\s+\S+\s+\S+\s+" + re.escape(f"[{lo:.6g}, {hi:.6g}]"), out, re.M), out
 
 
 def test_params_file_gives_starts_and_held_values(tmp_path, run_cli):

@@ -169,7 +169,7 @@ def result_table(r, units: dict | None = None) -> str:
         lines.append("held fixed: " + ", ".join(f"{k} = {v:.6g}" + (f" {units[k]}" if units.get(k) else "")
                                                 for k, v in held.items()))
     lines.append("")
-    lines.append("correlation matrix [-]:")
+    lines.append("correlation matrix:")
     cw = max(8, max(len(n) for n in r.free) + 1)
     lines.append(" " * cw + "".join(f"{n:>{cw}}" for n in r.free))
     for i, n in enumerate(r.free):
