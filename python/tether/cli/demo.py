@@ -105,8 +105,6 @@ it sits at the level of the true equations (2.3e-7 m), far below the black-box m
 
 def _discovery(report: Path) -> str:
     """Step 3: tether discover on the bundled record; returns the report section (HTML)."""
-    import json
-
     from ..resources import reference_results_dir
 
     from ..discover import DEFAULT_BUDGET, account, discover, discovery_document
@@ -123,7 +121,7 @@ def _discovery(report: Path) -> str:
     out = report / "discovery"
     write_discovery_report(out, d, doc)
     print(account(d))
-    hidden = sorted(json.loads(discovery_trace.with_suffix(".json").read_text()).get("hidden", {}).get("revealed", []))
+    hidden = sorted(trace.meta.get("hidden", {}).get("revealed", []))
     named = doc["added_effects"]
     verdict = "the same set" if sorted(named) == hidden else "NOT the hidden set"
     print(f"  hidden in the record: {', '.join(hidden) or 'nothing'}; named: {', '.join(named) or 'nothing'} ({verdict})")

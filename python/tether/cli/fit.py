@@ -85,6 +85,7 @@ def run(args) -> int:
             fixed = {k: v for k, v in values.items() if k not in dflt}
 
     names = ", ".join(tr.stem.name for tr in traces)
+    unit = _measured_unit(traces)
     t0 = time.time()
     with Progress("fit", 1.0) as bar:
         def progress(p):
@@ -93,7 +94,7 @@ def run(args) -> int:
                     bar.line(f"fitting {spec.canonical} to {names}")
                 bar.line(f"  {p}")
             else:
-                bar.update(fit_fraction(p, args.starts), _status(p))
+                bar.update(fit_fraction(p, args.starts), _status(p, unit))
 
         try:
             result = fit_traces(traces, spec, free=free, start=start, fixed=fixed, progress=progress,
@@ -131,20 +132,26 @@ def fit_fraction(p, n_starts: int = 1) -> float:
     return done + piece * (1.0 - 0.85 ** (p.iteration + 1))
 
 
-def _status(p) -> str:
-    return f"stage {p.stage_index + 1}/{p.n_stages}, iteration {p.iteration + 1}, RMS {p.rms:.3g}"
+def _status(p, unit: str) -> str:
+    return f"stage {p.stage_index + 1}/{p.n_stages}, iteration {p.iteration + 1}, RMS {p.rms:.3g} {unit}".rstrip()
+
+
+def _measured_unit(traces) -> str:
+    """The unit of the traces' measured columns (the RMS error's), "" if they differ."""
+    from ..traces import COLUMN_UNITS
+
+    units = {COLUMN_UNITS.get(tr.measured_column, "") for tr in traces}
+    return units.pop() if len(units) == 1 else ""
 
 
 def _units(result, traces) -> dict:
     """name -> unit of every parameter in the result (modelDescription.xml), and "rms" -> the
     measured column's unit."""
     from ..fmu import model_description
-    from ..traces import COLUMN_UNITS
 
     variables = model_description().variables
     units = {n: variables[n].unit if n in variables else "" for n in result.parameters}
-    measured = {COLUMN_UNITS.get(tr.measured_column, "") for tr in traces}
-    units["rms"] = measured.pop() if len(measured) == 1 else "unit of each trace"
+    units["rms"] = _measured_unit(traces)
     return units
 
 

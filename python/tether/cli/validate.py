@@ -60,6 +60,7 @@ def _tolerance(text: str) -> float:
 def run(args) -> int:
     from ..models import parse_model, read_params
     from ..report import plot_validation, validation_page, validation_table, write_json_atomic, write_text_atomic
+    from ..traces import COLUMN_UNITS
     from ..validate import find_traces, validate_trace
     from . import CLIError, RUN_ERROR, warn
     from .common import check_report_dir, read_checked_trace
@@ -92,6 +93,7 @@ def run(args) -> int:
             v = done[i - 1] if args.scheduler else validate_trace(tr, model, params)
             row = v.as_dict()
             row["within_tolerance"] = bool(v.nrmse <= args.tolerance)
+            row["unit"] = COLUMN_UNITS[tr.measured_column]     # of rms_error, max_error, noise_sigma
             rows.append(row)
             img = f"plots/{tr.stem.name}.png"
             plot_validation(v, report / img)
