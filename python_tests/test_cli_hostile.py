@@ -382,3 +382,19 @@ def test_hostile_inputs_exit_2_one_line_nothing_replaced(good, keep, tmp_path, w
             before = after
     assert not failures, "\n".join(failures)
     assert not Path("/sys/kernel/OUT.csv").exists() and not Path("/dev/tether-new.csv").exists()
+
+
+def test_signal_in_process_leaves_no_temp(good, keep, tmp_path, run_cli, fmu_path, monkeypatch):
+    # tether.cli.main called as a library: Python handlers raise in the caller's thread; a SIGTERM
+    # arriving between the write and the rename removes the temporary file, the target stays
+    import tether.atomic as atomic
+
+    def signal_now(path):
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(atomic, "_default_mode", signal_now)
+    names = set(os.listdir(tmp_path))
+    status, _, err = run_cli("simulate", good, "--out", keep)
+    assert status == 128 + signal.SIGTERM and "terminated by SIGTERM" in err and len(err.strip().splitlines()) == 1
+    assert set(os.listdir(tmp_path)) == names and keep.read_text() == "previous result\n"
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL         # the caller's handler is back

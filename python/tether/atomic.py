@@ -6,8 +6,8 @@ left as it was.
 
 A temporary file is named ``.NAME.PID.RANDOM.tether-tmp`` beside its target, and its name is
 registered (:data:`PENDING`) before the file is created, so that :func:`remove_pending` (called by
-the command line's SIGTERM/SIGINT handlers) removes every temporary file the process has open at
-any instant. SIGKILL cannot be caught: a killed run may leave one behind; the next write to the same
+the command line's SIGTERM/SIGINT handling, in a handler or in a thread of its own: :data:`LOCK`)
+removes every temporary file the process has open at any instant. SIGKILL cannot be caught: a killed run may leave one behind; the next write to the same
 folder removes those whose process is gone (:func:`remove_stale`).
 """
 
@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import re
 import secrets
+import threading
 from pathlib import Path
 from typing import Callable, TextIO
 
@@ -23,6 +24,9 @@ from typing import Callable, TextIO
 TMP_SUFFIX = ".tether-tmp"
 #: temporary files of this process not yet renamed or removed
 PENDING: set[str] = set()
+#: held while a temporary file is created or renamed, and by :func:`remove_pending` from another
+#: thread (re-entrant: a signal handler in the main thread may run inside those sections)
+LOCK = threading.RLock()
 
 _TMP_NAME = re.compile(r"^\..*\.(\d+)\.[0-9a-f]{8}" + re.escape(TMP_SUFFIX) + r"$")
 
@@ -63,27 +67,29 @@ def remove_stale(folder: str | os.PathLike) -> list[Path]:
 
 def remove_pending() -> None:
     """Remove every temporary file of this process (safe to call from a signal handler)."""
-    for tmp in list(PENDING):
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        PENDING.discard(tmp)
+    with LOCK:
+        for tmp in list(PENDING):
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+            PENDING.discard(tmp)
 
 
 def _create_temp(path: Path) -> str:
     """Create (exclusively) and register a new temporary file for ``path``; return its name."""
     while True:
         tmp = str(path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}{TMP_SUFFIX}")
-        PENDING.add(tmp)                  # registered before it exists: a signal never misses it
-        try:
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
-            return tmp
-        except FileExistsError:
-            PENDING.discard(tmp)
-        except BaseException:
-            PENDING.discard(tmp)
-            raise
+        with LOCK:
+            PENDING.add(tmp)              # registered before it exists: a signal never misses it
+            try:
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+                return tmp
+            except FileExistsError:
+                PENDING.discard(tmp)
+            except BaseException:
+                PENDING.discard(tmp)
+                raise
 
 
 def replace_with(path: str | os.PathLike, write: Callable[[str], None]) -> None:
@@ -95,8 +101,9 @@ def replace_with(path: str | os.PathLike, write: Callable[[str], None]) -> None:
     try:
         write(tmp)
         _default_mode(tmp)
-        os.replace(tmp, path)
-        PENDING.discard(tmp)
+        with LOCK:
+            os.replace(tmp, path)
+            PENDING.discard(tmp)
     except BaseException:
         try:
             os.unlink(tmp)

@@ -97,6 +97,9 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_SIGNALS = (signal.SIGTERM, signal.SIGINT)
+
+
 def _on_signal(signum, frame):  # noqa: ARG001 - signal API
     from ..atomic import remove_pending
 
@@ -104,11 +107,42 @@ def _on_signal(signum, frame):  # noqa: ARG001 - signal API
     raise Terminated(signum)
 
 
-def _install_signal_handlers() -> dict:
-    """SIGTERM and SIGINT remove pending temporary output, then end the run; returns the old handlers."""
+def _signal_thread() -> None:
+    """The process's own command line: wait for SIGTERM/SIGINT in this thread and end the process
+    at once, whatever the main thread is doing (a fit inside the engine runs no Python, so a
+    Python handler would wait for it: 9 s in a discovery)."""
+    import atexit
+    import os
+
+    from ..atomic import LOCK, remove_pending
+
+    signum = signal.sigwait(set(_SIGNALS))
+    with LOCK:                  # no temporary file is being created or renamed now
+        remove_pending()
+        console.error(f"terminated by {signal.Signals(signum).name}; no partial output was left")
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        atexit._run_exitfuncs()     # the FMU's extracted copy
+        os._exit(128 + signum)
+
+
+def _install_signal_handlers(own_process: bool) -> dict:
+    """SIGTERM and SIGINT remove pending temporary output, then end the run; returns the old handlers.
+
+    In a process of its own (the console script) a thread waits for the signals, blocked in every
+    other thread; called as a library, Python handlers raise :class:`Terminated` in the caller."""
+    import threading
+
+    if own_process and hasattr(signal, "pthread_sigmask") and threading.current_thread() is threading.main_thread():
+        signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)     # inherited by every thread started later
+        threading.Thread(target=_signal_thread, name="tether-signals", daemon=True).start()
+        return {}
     old = {}
     try:
-        for s in (signal.SIGTERM, signal.SIGINT):
+        for s in _SIGNALS:
             old[s] = signal.signal(s, _on_signal)
     except ValueError:          # not the main thread (tether.cli.main called from a thread)
         pass
@@ -127,9 +161,12 @@ def _silence_stdout() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; ``argv`` None means the process is ours (the console script,
+    ``python -m tether``), so that a signal may end it at once (see :func:`_signal_thread`)."""
+    own_process = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
-    old_handlers = _install_signal_handlers()
+    old_handlers = _install_signal_handlers(own_process)
     try:
         return _main(argv)
     except SystemExit:
