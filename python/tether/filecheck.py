@@ -8,7 +8,7 @@ the file: ``"is a directory"``, ``"links to /dev/zero, a character device"``, ``
 * :func:`output_problem`: a file to write must be a regular file or a new name, in an existing,
   writable folder off the pseudo-filesystems; a device node is never replaced.
 * :func:`load_json`: ``json.loads`` with a limit on nesting (:data:`MAX_JSON_DEPTH`), so that a
-  hostile file is one clear error instead of a RecursionError.
+  hostile file is one clear error (:class:`JSONInputError`) instead of a RecursionError.
 """
 
 from __future__ import annotations
@@ -29,7 +29,11 @@ PSEUDO_FILESYSTEMS = {"proc", "sysfs", "devtmpfs", "devpts", "debugfs", "tracefs
 PSEUDO_ROOTS = (Path("/proc"), Path("/sys"), Path("/dev"))
 
 
-class JSONDepthError(ValueError):
+class JSONInputError(ValueError):
+    """A JSON text that cannot be read; ``str(e)`` says where and why, for after the file's name."""
+
+
+class JSONDepthError(JSONInputError):
     """A JSON text nested deeper than :data:`MAX_JSON_DEPTH`; ``lineno``/``colno`` where it passes it."""
 
     def __init__(self, lineno: int, colno: int, limit: int):
@@ -195,19 +199,17 @@ def json_depth_check(text: str, limit: int = MAX_JSON_DEPTH) -> None:
 
 
 def load_json(text: str, limit: int = MAX_JSON_DEPTH):
-    """``json.loads(text)`` for files from outside: nesting limited, numbers checked.
-
-    Raises :class:`JSONDepthError`, :class:`json.JSONDecodeError`, or ValueError for a number
-    Python will not convert (an integer of more than 4300 digits).
-    """
+    """``json.loads(text)`` for files from outside: nesting limited, every failure one
+    :class:`JSONInputError` (bad syntax with its line and column, too deep, a number Python will
+    not convert: an integer of more than 4300 digits)."""
     json_depth_check(text, limit)
     try:
         return json.loads(text)
     except RecursionError:       # a limit set higher than the interpreter's stack
         raise JSONDepthError(1, 1, limit) from None
-    except json.JSONDecodeError:
-        raise
+    except json.JSONDecodeError as e:
+        raise JSONInputError(f"line {e.lineno}, column {e.colno}: invalid JSON ({e.msg})") from None
     except ValueError as e:      # Python reads integers of at most 4300 digits
         digits = re.search(r"value has (\d+) digits", str(e))
-        raise ValueError(f"an integer of {digits.group(1) if digits else 'too many'} digits; numbers this "
-                         "long are not read") from None
+        raise JSONInputError(f"invalid JSON number (an integer of {digits.group(1) if digits else 'too many'} "
+                             "digits; numbers this long are not read)") from None

@@ -331,7 +331,7 @@ def check_parameters(params: Mapping[str, Any], where: str, description=None) ->
 
 def read_params(path: str | os.PathLike, description=None) -> ParamsFile:
     """Read and check a parameter file (canonical or flat form; see the module docstring)."""
-    from .filecheck import JSONDepthError, input_problem, load_json
+    from .filecheck import JSONInputError, input_problem, load_json
 
     path = Path(path)
     problem = input_problem(path)
@@ -352,12 +352,8 @@ def read_params(path: str | os.PathLike, description=None) -> ParamsFile:
                           "{\"model\": ..., \"parameters\": {name: number}} or {name: number}")
     try:
         raw = load_json(text)
-    except JSONDepthError as e:
-        raise ParamsError(f"{path}: {e}; expected a parameter file {{name: number}}") from None
-    except json.JSONDecodeError as e:
-        raise ParamsError(f"{path}: line {e.lineno}, column {e.colno}: invalid JSON ({e.msg})") from None
-    except ValueError as e:
-        raise ParamsError(f"{path}: invalid JSON number ({e})") from None
+    except JSONInputError as e:
+        raise ParamsError(f"{path}: {e}") from None
     if not isinstance(raw, dict):
         raise ParamsError(f"{path}: the top level is {type(raw).__name__}; expected a JSON object "
                           "{\"model\": ..., \"parameters\": {name: number}} or {name: number}")

@@ -281,7 +281,7 @@ def _check_trace_files(given: str | os.PathLike, csv_path: Path, json_path: Path
     where = "a trace is NAME.csv plus NAME.json side by side"
     problems = [(p, input_problem(p)) for p in (csv_path, json_path)]
     given = Path(given)
-    if given not in (csv_path, json_path) and any(why for _, why in problems) and \
+    if given.suffix.lower() not in (".csv", ".json") and any(why for _, why in problems) and \
             (given.exists() or given.is_symlink()):
         # the stem form names something that is there, but not a trace: say what it is
         why = input_problem(given) or "is a file without the .csv or .json suffix"
@@ -325,16 +325,12 @@ def _number(meta: dict, key: str, where: str, path: Path, *, positive: bool = Fa
 
 
 def _parse_json(text: str, path: Path) -> Any:
-    from .filecheck import JSONDepthError, load_json
+    from .filecheck import JSONInputError, load_json
 
     try:
         return load_json(text)
-    except JSONDepthError as e:
-        raise TraceError(f"{path}: {e}; expected a trace's JSON object", path) from None
-    except json.JSONDecodeError as e:
-        raise TraceError(f"{path}: line {e.lineno}, column {e.colno}: invalid JSON ({e.msg})", path) from None
-    except ValueError as e:
-        raise TraceError(f"{path}: invalid JSON number ({e})", path) from None
+    except JSONInputError as e:
+        raise TraceError(f"{path}: {e}", path) from None
 
 
 def _read_json(path: Path) -> dict:
