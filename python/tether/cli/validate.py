@@ -103,13 +103,13 @@ def run(args) -> int:
             bar.update(i, tr.stem.name)
             for w in v.result.warnings:
                 warn(f"{tr.stem.name}: {w}")
-    print(validation_table(rows))
     doc = {"format": "tether-validation/1", "tolerance": {"on": "normalized_rms_error", "max": args.tolerance},
            "traces": rows}
     write_json_atomic(report / "validation.json", doc)
     page = validation_page(rows, images, "KevlarTether validation",
                            f"{len(rows)} traces validated with the KevlarTether FMU in {time.time() - t_all:.1f} s.")
     write_text_atomic(report / "index.html", page)
+    print(validation_table(rows))      # after the files: a closed stdout (| head) must not lose them
     bad = [r["trace"].split("/")[-1] for r in rows if r["within_noise"] is False]
     print(f"report: {report / 'index.html'} (numbers: {report / 'validation.json'})")
     if bad:
