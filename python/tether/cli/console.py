@@ -55,12 +55,6 @@ def note(message: str) -> None:
         _write(_one_line(message) + "\n")
 
 
-def detail(message: str) -> None:
-    """A line only --verbose and --debug show."""
-    if _level >= VERBOSE:
-        _write(_one_line(message) + "\n")
-
-
 def warn(message: str) -> None:
     if _level >= NORMAL:
         _write("tether: warning: " + _one_line(message) + "\n")
