@@ -26,6 +26,7 @@ QUIET, NORMAL, VERBOSE, DEBUG = 0, 1, 2, 3
 PLAIN_INTERVAL = 10.0
 
 _level = NORMAL
+_bars_shown = 0         # bars on the terminal now: an error line starts below them
 
 
 def configure(level: int) -> None:
@@ -62,7 +63,7 @@ def warn(message: str) -> None:
 
 def error(message: str) -> None:
     """The one line of an error (always shown)."""
-    _write("tether: error: " + _one_line(message) + "\n")
+    _write(("\n" if _bars_shown else "") + "tether: error: " + _one_line(message) + "\n")
 
 
 def _clock(seconds: float) -> str:
@@ -100,6 +101,9 @@ class Progress:
         self._stop = threading.Event()
         if _level >= NORMAL and _use_bar():
             self._bar = self._make_bar()
+        if self._bar is not None:
+            global _bars_shown
+            _bars_shown += 1
         if deadline and _level >= NORMAL:
             self._ticker = threading.Thread(target=self._tick, name="tether-progress", daemon=True)
             self._ticker.start()
@@ -180,8 +184,10 @@ class Progress:
             self._ticker.join()
         with self._lock:
             if self._bar is not None:
+                global _bars_shown
                 self._bar.close()
                 self._bar = None
+                _bars_shown -= 1
 
     def __enter__(self) -> "Progress":
         return self
