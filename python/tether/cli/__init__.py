@@ -188,6 +188,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _main(argv: list[str]) -> int:
+    console.configure(console.NORMAL)          # until the options are read (an earlier call's level)
     args = build_parser().parse_args(argv)
     console.configure(args.verbosity)
     # after the parse: `tether --help` needs none of these (nor numpy)
