@@ -150,7 +150,8 @@ def _units(result, traces) -> dict:
     from ..fmu import model_description
 
     variables = model_description().variables
-    units = {n: variables[n].unit if n in variables else "" for n in result.parameters}
+    # "1" is modelDescription.xml's unit of a pure number: shown as none
+    units = {n: variables[n].unit if n in variables and variables[n].unit != "1" else "" for n in result.parameters}
     units["rms"] = _measured_unit(traces)
     return units
 
