@@ -271,6 +271,10 @@ def _hostile_inputs(tmp_path: Path, good: Path, keep: Path, write_trace) -> list
     (tmp_path / "pipe.json").write_text(json.dumps(meta))
     cases.append(("trace: a FIFO", ["simulate", pipe, "--out", keep], ("named pipe",)))
     cases.append(("trace: missing", ["simulate", tmp_path / "nothing", "--out", keep], ("not found",)))
+    cases.append(("trace: name too long", ["simulate", tmp_path / ("y" * 5000), "--out", keep], ("too long",)))
+    cases.append(("out: name too long", ["simulate", good, "--out", tmp_path / ("x" * 5000)], ("too long",)))
+    cases.append(("params: name too long", ["simulate", good, "--params", tmp_path / ("p" * 300), "--out", keep],
+                  ("too long",)))
     broken = tmp_path / "broken.csv"
     broken.symlink_to(tmp_path / "gone.csv")
     (tmp_path / "broken.json").write_text(json.dumps(meta))

@@ -282,7 +282,7 @@ def _check_trace_files(given: str | os.PathLike, csv_path: Path, json_path: Path
     problems = [(p, input_problem(p)) for p in (csv_path, json_path)]
     given = Path(given)
     if given.suffix.lower() not in (".csv", ".json") and any(why for _, why in problems) and \
-            (given.exists() or given.is_symlink()):
+            os.path.lexists(given):                # (lexists: a name too long is not there, not an error)
         # the stem form names something that is there, but not a trace: say what it is
         why = input_problem(given) or "is a file without the .csv or .json suffix"
         raise TraceError(f"{given}: {why}; expected a trace: NAME.csv, NAME.json or the stem NAME ({where})", given)
