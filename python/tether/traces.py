@@ -165,7 +165,7 @@ def trace_paths(path: str | os.PathLike) -> tuple[Path, Path, Path]:
     stem = p.with_suffix("") if p.suffix.lower() in (".csv", ".json") else p
     csv_path = stem.with_name(stem.name + ".csv")
     gz_path = stem.with_name(stem.name + ".csv.gz")
-    if not csv_path.is_file() and gz_path.is_file():
+    if not os.path.isfile(csv_path) and os.path.isfile(gz_path):     # (isfile: a name too long is no file)
         csv_path = gz_path
     return stem, csv_path, stem.with_name(stem.name + ".json")
 
