@@ -136,3 +136,19 @@ def write_csv_atomic(path: Path, names: Sequence[str], columns: Sequence) -> Non
         np.savetxt(f, data, delimiter=",", fmt="%.17g")
 
     write_with(path, fill)
+
+
+def positive_number(what: str):
+    """An argparse ``type`` for a finite number > 0; the message names what the number is."""
+    def parse(text: str) -> float:
+        import argparse
+        import math
+
+        try:
+            v = float(text)
+        except ValueError:
+            v = float("nan")
+        if not (math.isfinite(v) and v > 0):
+            raise argparse.ArgumentTypeError(f"expected a positive number ({what}), got {text!r}")
+        return v
+    return parse

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from .common import positive_number
+
 NAME = "discover"
 HELP = "find the effects a trace shows that the linear baseline lacks, step by step, with evidence"
 DESCRIPTION = """\
@@ -44,22 +46,10 @@ def add_arguments(parser) -> None:
     from .sweep import add_scheduler_argument
     add_scheduler_argument(parser)
     parser.add_argument("--report", metavar="DIR", help="write DIR/index.html with the story in plots")
-    parser.add_argument("--budget", metavar="SECONDS", type=_seconds, default=None,
+    parser.add_argument("--budget", metavar="SECONDS", type=positive_number("seconds"), default=None,
                         help="bound the run (default 900 s): a step not judged to the end when it is spent "
                              "adds nothing, and the account says so")
 
-
-def _seconds(text: str) -> float:
-    import argparse
-    import math
-
-    try:
-        v = float(text)
-    except ValueError:
-        v = float("nan")
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
-    return v
 
 
 def run(args) -> int:

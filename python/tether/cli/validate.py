@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from .common import add_model_arguments
+from .common import add_model_arguments, positive_number
 
 NAME = "validate"
 HELP = "simulate traces with the FMU and report RMS error, NRMSE, R^2 and the largest error, with plots"
@@ -39,22 +39,10 @@ def add_arguments(parser) -> None:
                         help="report directory (default: reports/validate)")
     from .sweep import add_scheduler_argument
     add_scheduler_argument(parser)
-    parser.add_argument("--tolerance", metavar="NRMSE", type=_tolerance, default=DEFAULT_TOLERANCE,
+    parser.add_argument("--tolerance", metavar="NRMSE", type=positive_number("a normalized RMS error"), default=DEFAULT_TOLERANCE,
                         help="largest normalized RMS error (RMS error / standard deviation of the measurement) "
                              f"a trace may have; any trace above it makes the exit status 1 (default {DEFAULT_TOLERANCE})")
 
-
-def _tolerance(text: str) -> float:
-    import argparse
-    import math
-
-    try:
-        v = float(text)
-    except ValueError:
-        v = float("nan")
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number (a normalized RMS error), got {text!r}")
-    return v
 
 
 def run(args) -> int:
