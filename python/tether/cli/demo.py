@@ -41,20 +41,13 @@ def run(args) -> int:
     from ..run import simulate
     from .common import check_report_dir
     from .console import note
-    from .validate import DEFAULT_TOLERANCE, run as run_validate
+    from .validate import run as run_validate
 
     report = check_report_dir(args.report)
     t0 = time.time()
     print("== 1. validation of the FMU against the bundled reference traces")
 
-    class _Args:
-        traces: list = []
-        model = None
-        params = None
-        tolerance = DEFAULT_TOLERANCE
-
-    a = _Args()
-    a.report = str(report / "validate")
+    a = _validate_arguments(["--report", str(report / "validate")])
     status = run_validate(a)         # 1 if a reference trace is outside the tolerance: the demo says so
 
     print("\n== 2. the Bouc-Wen benchmark with its nominal parameters")
@@ -139,3 +132,14 @@ against each model in turn, the residuals with the flagged windows, the gap step
 (<a href="discovery/discovery.json">the record as JSON</a>, also a <code>--params</code> file of the
 discovered model).</p>
 """
+
+
+def _validate_arguments(argv: list[str]):
+    """`tether validate`'s own parser on ARGV: every option the demo does not give keeps its default."""
+    import argparse
+
+    from . import validate
+
+    parser = argparse.ArgumentParser(prog="tether validate")
+    validate.add_arguments(parser)
+    return parser.parse_args(argv)
