@@ -46,7 +46,7 @@ class RowsFile:
     def start(self) -> None:
         """A new sweep: write the state file, then OUT with its header (an old OUT is replaced)."""
         self._write_state(finished=False)
-        replace_with(self.out, lambda tmp: Path(tmp).write_text(self.header, encoding="utf-8"), suffix=".csv")
+        replace_with(self.out, lambda tmp: Path(tmp).write_text(self.header, encoding="utf-8"))
         self._f = open(self.out, "a", encoding="utf-8", newline="\n")
 
     def resume(self) -> set[int]:
@@ -92,8 +92,7 @@ class RowsFile:
         """All runs in: OUT in run order, atomically; the state file marked finished."""
         self.close()
         ordered = "".join(self.rows[i] for i in sorted(self.rows))
-        replace_with(self.out, lambda tmp: Path(tmp).write_text(self.header + ordered, encoding="utf-8"),
-                     suffix=".csv")
+        replace_with(self.out, lambda tmp: Path(tmp).write_text(self.header + ordered, encoding="utf-8"))
         self._write_state(finished=True)
 
     def _write_state(self, finished: bool) -> None:
@@ -118,7 +117,7 @@ def write_series(folder: Path, index: int, measured_column: str, time, predicted
 
     table = pa.table({"time": np.asarray(time, float), measured_column: np.asarray(predicted, float),
                       "tension": np.asarray(tension, float)})
-    replace_with(series_path(folder, index), lambda tmp: pq.write_table(table, tmp), suffix=".parquet")
+    replace_with(series_path(folder, index), lambda tmp: pq.write_table(table, tmp))
 
 
 def read_series(folder: Path, index: int, measured_column: str) -> np.ndarray:
