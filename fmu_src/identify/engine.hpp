@@ -19,16 +19,32 @@ namespace kt {
 struct ParameterEntry {
     const char *name;
     int kind;          // KT_PAR_*
-    std::size_t offset; // in tether_params (REAL, SWITCH) or tether_inputs (INPUT)
+    std::size_t offset; // in tether_params (REAL, SWITCH), tether_inputs (INPUT) or Measurement (MEASUREMENT)
     double start;
+};
+
+// How a record relates to the model, beside the physics (identify.h, KT_PAR_MEASUREMENT): the
+// model is driven by input_gain * recorded input + offset_input (derivatives times input_gain) and
+// the measured column is compared with the model's output + offset_measured. Not FMU variables:
+// the FMU simulates physics, the measurement belongs to identification.
+struct Measurement {
+    double offset_measured = 0.0;
+    double offset_input = 0.0;
+    double input_gain = 1.0;
+};
+
+// Everything a simulation of one experiment depends on: the model and the measurement.
+struct Setup {
+    tether_model M;
+    Measurement meas;
 };
 
 const std::vector<ParameterEntry> &parameter_table();
 int parameter_index(const char *name);
-// the model of modelDescription.xml's start values (what fmi2Instantiate sets)
-tether_model start_model();
-bool set_parameter(tether_model &M, int index, double value, std::string &err);
-double get_parameter(const tether_model &M, int index);
+// the model of modelDescription.xml's start values (what fmi2Instantiate sets), the measurement's defaults
+Setup start_setup();
+bool set_parameter(Setup &S, int index, double value, std::string &err);
+double get_parameter(const Setup &S, int index);
 // offset of a double field of tether_outputs for an output variable name; false if unknown
 bool output_offset(const char *name, std::size_t &offset);
 
@@ -47,8 +63,9 @@ struct Limits {
 // An experiment ready to run: the model with the experiment's settings, the output offsets.
 struct Prepared {
     const kt_experiment *e = nullptr;
-    tether_model base{};
+    Setup base{};
     std::vector<std::size_t> outputs;
+    int measured_output = 0; // which of outputs is the measured column (offset_measured); -1 none
     // fit speed-up (1 = off, the FMU's exact step sequence): without inputs, integrate `stride`
     // samples per integrator call and fill the samples between by cubic Hermite interpolation of
     // the states (a chunk with a discrete event is redone sample by sample)
@@ -57,8 +74,9 @@ struct Prepared {
 };
 bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prepared &p, std::string &err);
 
-// Run the experiment on the model M (parameters set); out is n x outputs.size() row-major.
-bool simulate(const Prepared &p, const tether_model &M, double *out, std::string &err);
+// Run the experiment on the setup S (parameters set); out is n x outputs.size() row-major, the
+// measured column with offset_measured added.
+bool simulate(const Prepared &p, const Setup &S, double *out, std::string &err);
 
 } // namespace kt
 

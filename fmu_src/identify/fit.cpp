@@ -61,12 +61,12 @@ struct Problem {
         r.resize(n_res);
         int off = 0;
         for (const kt::Prepared &pe : exps) {
-            tether_model M = pe.base;
-            if (rtol_override > 0) M.p.rtol = rtol_override;
+            kt::Setup S = pe.base;
+            if (rtol_override > 0) S.M.p.rtol = rtol_override;
             for (std::size_t j = 0; j < par.size(); ++j)
-                if (!kt::set_parameter(M, par[j], to_p((int)j, th[(Eigen::Index)j]), err)) return false;
+                if (!kt::set_parameter(S, par[j], to_p((int)j, th[(Eigen::Index)j]), err)) return false;
             const kt_experiment &e = *pe.e;
-            if (!kt::simulate(pe, M, r.data() + off, err)) return false;
+            if (!kt::simulate(pe, S, r.data() + off, err)) return false;
             const double w = e.weight > 0 ? e.weight : 1.0;
             for (int k = 0; k < e.n; ++k) {
                 double &v = r[off + k];

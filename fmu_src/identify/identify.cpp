@@ -30,7 +30,7 @@ double kt_parameter_start(const char *name)
 {
     const int i = kt::parameter_index(name);
     if (i < 0) return std::numeric_limits<double>::quiet_NaN();
-    return kt::get_parameter(kt::start_model(), i);
+    return kt::get_parameter(kt::start_setup(), i);
 }
 
 const char *kt_last_error(void) { return kt::last_error.c_str(); }
@@ -44,13 +44,13 @@ int kt_simulate_outputs(const kt_experiment *e, int n_par, const char *const *na
         if (!e || !out) { err = "kt_simulate: experiment and out must not be NULL"; return -1; }
         kt::Prepared p;
         if (!kt::prepare(*e, n_out, outputs, p, err)) return -1;
-        tether_model M = p.base;
+        kt::Setup S = p.base;
         for (int i = 0; i < n_par; ++i) {
             const int idx = kt::parameter_index(names[i]);
             if (idx < 0) { err = std::string("parameter '") + (names[i] ? names[i] : "(null)") + "': no such parameter"; return -1; }
-            if (!kt::set_parameter(M, idx, values[i], err)) return -1;
+            if (!kt::set_parameter(S, idx, values[i], err)) return -1;
         }
-        return kt::simulate(p, M, out, err) ? 0 : -1;
+        return kt::simulate(p, S, out, err) ? 0 : -1;
     } catch (const std::exception &ex) {
         err = std::string("kt_simulate: ") + ex.what();
         return -1;

@@ -6,7 +6,8 @@
  *
  * Parameters are addressed by their modelDescription.xml names (kt_parameter_name lists them):
  * every Real parameter (fields of tether_params), the Integer/Boolean switches (rig, stiffness,
- * damping, hysteresis, integrator, creep, slack; set as doubles, rounded) and the input L0.
+ * damping, hysteresis, integrator, creep, slack; set as doubles, rounded), the input L0 and the
+ * measurement parameters offset_measured, offset_input, input_gain (KT_PAR_MEASUREMENT).
  *
  * Plain C types only; every array is owned by the caller. Thread-safe (no global state besides a
  * thread-local error message).
@@ -26,12 +27,19 @@ extern "C" {
 #define KT_API
 #endif
 
-#define KT_IDENTIFY_API_VERSION 4
+#define KT_IDENTIFY_API_VERSION 5
 
 /* ---- parameter table ------------------------------------------------------------------------ */
 #define KT_PAR_REAL 0   /* a Real parameter: a double field of tether_params */
 #define KT_PAR_SWITCH 1 /* an Integer/Boolean parameter: an int field of tether_params */
 #define KT_PAR_INPUT 2  /* a Real input that is constant in an experiment (L0) */
+/* a measurement parameter of an experiment, not an FMU variable (the FMU simulates physics; how the
+ * record relates to it belongs to identification):
+ *   offset_measured (start 0): the measured column = the model's output + offset_measured;
+ *   offset_input (start 0), input_gain (start 1): the model is driven by
+ *     input_gain * recorded input + offset_input, its derivatives by input_gain * recorded ones.
+ * Set and fitted by name like any other parameter. */
+#define KT_PAR_MEASUREMENT 3
 KT_API int kt_api_version(void);
 KT_API int kt_parameter_count(void);
 /* name of entry i (NULL if out of range); *kind one of KT_PAR_* (kind may be NULL) */
@@ -49,7 +57,7 @@ KT_API double kt_parameter_start(const char *name);
 
 typedef struct {
     /* fixed settings of this experiment, applied over modelDescription.xml's start values
-     * (e.g. rig, stiffness, damping, hysteresis, m, g, x0, v0, L0, rtol) */
+     * (e.g. rig, stiffness, damping, hysteresis, m, g, x0, v0, L0, rtol, offset_measured) */
     int n_settings;
     const char *const *setting_names;
     const double *setting_values;
@@ -80,10 +88,11 @@ typedef struct {
 } kt_experiment;
 
 /* Simulate one experiment with the parameters names[i] = values[i] (after the experiment's own
- * settings); out[k] = the output at time[k]. Returns 0, or -1 with kt_last_error(). */
+ * settings); out[k] = the output at time[k] (+ offset_measured). Returns 0, or -1 with kt_last_error(). */
 KT_API int kt_simulate(const kt_experiment *e, int n_par, const char *const *names, const double *values,
                        double *out);
-/* The same, several outputs at once: out is row-major n x n_out, outputs named like kt_experiment.output. */
+/* The same, several outputs at once: out is row-major n x n_out, outputs named like kt_experiment.output
+ * (offset_measured is added to the one that is kt_experiment.output, the measured column, only). */
 KT_API int kt_simulate_outputs(const kt_experiment *e, int n_par, const char *const *names, const double *values,
                                int n_out, const char *const *outputs, double *out);
 KT_API const char *kt_last_error(void);

@@ -43,6 +43,11 @@ const std::vector<ParameterEntry> &parameter_table()
         KT_BOOLEAN_VARIABLES(KT_ENTRY_BOOL)
         // the only input that is a constant of an experiment
         t.push_back({"L0", KT_PAR_INPUT, offsetof(tether_inputs, L0), 0.0});
+        // the measurement (engine.hpp, Measurement)
+        const Measurement defaults;
+        t.push_back({"offset_measured", KT_PAR_MEASUREMENT, offsetof(Measurement, offset_measured), defaults.offset_measured});
+        t.push_back({"offset_input", KT_PAR_MEASUREMENT, offsetof(Measurement, offset_input), defaults.offset_input});
+        t.push_back({"input_gain", KT_PAR_MEASUREMENT, offsetof(Measurement, input_gain), defaults.input_gain});
         return t;
     }();
     return table;
@@ -57,7 +62,7 @@ int parameter_index(const char *name)
     return -1;
 }
 
-tether_model start_model()
+static tether_model start_model()
 {
     // the same as fmu.c's set_start_values
     tether_model M;
@@ -78,7 +83,23 @@ tether_model start_model()
     return M;
 }
 
-bool set_parameter(tether_model &M, int index, double value, std::string &err)
+Setup start_setup()
+{
+    Setup S;
+    S.M = start_model();
+    S.meas = Measurement();
+    return S;
+}
+
+// the bytes a table entry addresses in a setup
+static char *field_base(Setup &S, int kind)
+{
+    if (kind == KT_PAR_INPUT) return reinterpret_cast<char *>(&S.M.in);
+    if (kind == KT_PAR_MEASUREMENT) return reinterpret_cast<char *>(&S.meas);
+    return reinterpret_cast<char *>(&S.M.p);
+}
+
+bool set_parameter(Setup &S, int index, double value, std::string &err)
 {
     const auto &t = parameter_table();
     if (index < 0 || index >= (int)t.size()) {
@@ -90,7 +111,7 @@ bool set_parameter(tether_model &M, int index, double value, std::string &err)
         err = std::string(e.name) + " = " + std::to_string(value) + " is not finite";
         return false;
     }
-    char *base = e.kind == KT_PAR_INPUT ? reinterpret_cast<char *>(&M.in) : reinterpret_cast<char *>(&M.p);
+    char *base = field_base(S, e.kind);
     if (e.kind == KT_PAR_SWITCH) {
         int v = (int)std::lround(value);
         std::memcpy(base + e.offset, &v, sizeof v);
@@ -100,10 +121,10 @@ bool set_parameter(tether_model &M, int index, double value, std::string &err)
     return true;
 }
 
-double get_parameter(const tether_model &M, int index)
+double get_parameter(const Setup &S, int index)
 {
     const ParameterEntry &e = parameter_table()[(std::size_t)index];
-    const char *base = e.kind == KT_PAR_INPUT ? reinterpret_cast<const char *>(&M.in) : reinterpret_cast<const char *>(&M.p);
+    const char *base = field_base(const_cast<Setup &>(S), e.kind);
     if (e.kind == KT_PAR_SWITCH) {
         int v;
         std::memcpy(&v, base + e.offset, sizeof v);
@@ -132,7 +153,7 @@ bool output_offset(const char *name, std::size_t &offset)
 bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prepared &p, std::string &err)
 {
     p.e = &e;
-    p.base = start_model();
+    p.base = start_setup();
     if (e.n < 2 || !e.time) { err = "an experiment needs n >= 2 samples and a time grid"; return false; }
     for (int k = 0; k + 1 < e.n; ++k)
         if (!(e.time[k + 1] > e.time[k])) {
@@ -156,14 +177,16 @@ bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prep
         if (!set_parameter(p.base, idx, e.setting_values[i], err)) return false;
     }
     p.outputs.clear();
+    std::size_t measured_off;
+    if (!output_offset(e.output, measured_off)) { err = std::string("output '") + e.output + "': not a Real output or local variable"; return false; }
+    p.measured_output = n_out <= 0 ? 0 : -1;
     if (n_out <= 0) {
-        std::size_t off;
-        if (!output_offset(e.output, off)) { err = std::string("output '") + e.output + "': not a Real output or local variable"; return false; }
-        p.outputs.push_back(off);
+        p.outputs.push_back(measured_off);
     } else {
         for (int i = 0; i < n_out; ++i) {
             std::size_t off;
             if (!output_offset(outputs[i], off)) { err = std::string("output '") + (outputs[i] ? outputs[i] : "(null)") + "': not a Real output or local variable"; return false; }
+            if (off == measured_off && p.measured_output < 0) p.measured_output = i;
             p.outputs.push_back(off);
         }
     }
@@ -178,15 +201,17 @@ struct IntegratorGuard {
 };
 
 // what an importer's fmi2SetReal(input) + fmi2SetRealInputDerivatives does (fmu.c): the value and
-// derivatives are stored, a change asks for a restart, and the polynomial starts at the FMU's time
-bool set_input(tether_model &M, const kt_experiment &e, int k, double t)
+// derivatives are stored, a change asks for a restart, and the polynomial starts at the FMU's time.
+// The model's input is input_gain * recorded + offset_input (Measurement).
+bool set_input(tether_model &M, const Measurement &meas, const kt_experiment &e, int k, double t)
 {
     bool changed = false;
     double *value = e.input_kind == KT_INPUT_FORCE ? &M.in.force : &M.in.load;
     double *der = e.input_kind == KT_INPUT_FORCE ? M.in.force_der : M.in.load_der;
-    if (*value != e.input[k]) { *value = e.input[k]; changed = true; }
+    const double v = meas.input_gain * e.input[k] + meas.offset_input;
+    if (*value != v) { *value = v; changed = true; }
     for (int j = 0; j < TETHER_INPUT_DERIVATIVE_ORDER; ++j) {
-        const double d = e.input_der ? e.input_der[3 * k + j] : 0.0;
+        const double d = e.input_der ? meas.input_gain * e.input_der[3 * k + j] : 0.0;
         if (der[j] != d) { der[j] = d; changed = true; }
     }
     M.in.t_ref = t;
@@ -216,7 +241,9 @@ std::string Limits::message() const
     return hit.load() == 2 ? "stopped: the CPU-time deadline passed" : "stopped: the wall-time deadline passed";
 }
 
-bool simulate(const Prepared &p, const tether_model &M0, double *out, std::string &err)
+// the physics of one experiment (simulate below adds the measured column's offset)
+static bool simulate_model(const Prepared &p, const tether_model &M0, const Measurement &meas, double *out,
+                           std::string &err)
 {
     // deadlines: read the clocks every few samples (a reading costs about a microsecond)
     unsigned long polls = 0;
@@ -236,7 +263,7 @@ bool simulate(const Prepared &p, const tether_model &M0, double *out, std::strin
 
     double t = e.time[0];
     // inputs at the first sample are set before the initialisation (the load rig starts from them)
-    if (has_input) set_input(M, e, 0, t);
+    if (has_input) set_input(M, meas, e, 0, t);
     // fmi2ExitInitializationMode -> initialize_model
     M.in.t_ref = t;
     if (tether_initialize(&M, t, y, msg, sizeof msg) != 0) { err = msg; return false; }
@@ -261,7 +288,7 @@ bool simulate(const Prepared &p, const tether_model &M0, double *out, std::strin
     // one step: the inputs of sample s, the outputs there, then fmi2DoStep to sample s + 1
     auto step = [&](double *o, bool last) -> bool {
         if (over_time(16)) return false;
-        if (s > 0 && has_input && set_input(M, e, input_index(s), t)) needs_reset = true;
+        if (s > 0 && has_input && set_input(M, meas, e, input_index(s), t)) needs_reset = true;
         if (o) {
             tether_outputs to;
             tether_compute_outputs(&M, t, y, &to);
@@ -416,6 +443,17 @@ bool simulate(const Prepared &p, const tether_model &M0, double *out, std::strin
         k = k2;
     }
     outputs_at(t, y, out + (std::size_t)(n - 1) * n_out);
+    return true;
+}
+
+bool simulate(const Prepared &p, const Setup &S, double *out, std::string &err)
+{
+    if (!simulate_model(p, S.M, S.meas, out, err)) return false;
+    const double offset = S.meas.offset_measured;
+    if (offset != 0.0 && p.measured_output >= 0) {
+        const std::size_t n_out = p.outputs.size();
+        for (int k = 0; k < p.e->n; ++k) out[(std::size_t)k * n_out + (std::size_t)p.measured_output] += offset;
+    }
     return true;
 }
 

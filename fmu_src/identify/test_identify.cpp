@@ -62,6 +62,73 @@ int main()
     CHECK(rc == 0, "fit rc %d: %s / %s", rc, kt_last_error(), r.message);
     CHECK(std::fabs(val[0] / 3000.0 - 1) < 1e-6 && std::fabs(val[1] / 0.8 - 1) < 1e-5, "fit: EA %g c0 %g", val[0], val[1]);
     std::printf("fit: EA %.9g c0 %.9g, %d evaluations, %.3f s, %s\n", val[0], val[1], r.evaluations, r.seconds, r.message);
+
+    // measurement parameters (KT_PAR_MEASUREMENT): in the table with their defaults, freeable by name
+    {
+        const char *mn[] = {"offset_measured", "offset_input", "input_gain"};
+        const double md[] = {0.0, 0.0, 1.0};
+        for (int i = 0; i < 3; ++i) {
+            const int idx = kt_parameter_index(mn[i]);
+            int kind = -1;
+            CHECK(idx >= 0 && kt_parameter_name(idx, &kind) && kind == KT_PAR_MEASUREMENT, "%s: not a measurement parameter", mn[i]);
+            CHECK(kt_parameter_start(mn[i]) == md[i], "start of %s = %g", mn[i], kt_parameter_start(mn[i]));
+        }
+    }
+    // offset_measured adds a constant to the measured column, nothing else
+    {
+        const char *on[] = {"EA", "c0", "offset_measured"};
+        const double ov[] = {3000.0, 0.8, 0.0037};
+        std::vector<double> shifted(n);
+        CHECK(kt_simulate(&e, 3, on, ov, shifted.data()) == 0, "simulate: %s", kt_last_error());
+        double dev = 0;
+        for (int i = 0; i < n; ++i) dev = std::fmax(dev, std::fabs(shifted[i] - meas[i] - 0.0037));
+        CHECK(dev < 1e-15, "offset_measured: largest deviation from the shifted trace %g", dev);
+        // fitted back beside the law
+        e.measured = shifted.data();
+        const char *fn[] = {"EA", "c0", "offset_measured"};
+        const double flo[] = {100.0, 1e-3, -1.0}, fhi[] = {1e5, 100.0, 1.0}, fst[] = {2700.0, 2.0, 0.0};
+        double v3[3], se3[3], cov3[9], cor3[9], sv3[3], svec3[9];
+        int fl3[3], df3[3];
+        kt_fit_result r3;
+        std::memset(&r3, 0, sizeof r3);
+        r3.values = v3; r3.std_error = se3; r3.covariance = cov3; r3.correlation = cor3; r3.singular_values = sv3;
+        r3.singular_vectors = svec3; r3.unidentifiable = fl3; r3.direction_flags = df3;
+        const int rc3 = kt_fit(&e, 1, 3, fn, flo, fhi, fst, nullptr, &o, &r3);
+        CHECK(rc3 == 0, "fit with offset rc %d: %s / %s", rc3, kt_last_error(), r3.message);
+        CHECK(std::fabs(v3[0] / 3000.0 - 1) < 1e-6 && std::fabs(v3[2] - 0.0037) < 1e-9,
+              "fit with offset: EA %g offset %g", v3[0], v3[2]);
+        e.measured = meas.data();
+    }
+    // input_gain and offset_input: the model is driven by gain * recorded + offset, derivatives times gain,
+    // the same as a record of that input with the defaults
+    {
+        std::vector<double> u(n), du(3 * n), u2(n), du2(3 * n), y1(n), y2(n);
+        const double gain = 1.7, off = 0.4, w = 9.0;
+        for (int i = 0; i < n; ++i) {
+            u[i] = std::sin(w * t[i]);
+            du[3 * i] = w * std::cos(w * t[i]);
+            du[3 * i + 1] = -w * w * std::sin(w * t[i]);
+            du[3 * i + 2] = -w * w * w * std::cos(w * t[i]);
+            u2[i] = gain * u[i] + off;
+            for (int j = 0; j < 3; ++j) du2[3 * i + j] = gain * du[3 * i + j];
+        }
+        kt_experiment f = e;
+        f.input_kind = KT_INPUT_FORCE;
+        f.input = u.data();
+        f.input_der = du.data();
+        const char *gn[] = {"EA", "c0", "input_gain", "offset_input"};
+        const double gv[] = {3000.0, 0.8, gain, off};
+        CHECK(kt_simulate(&f, 4, gn, gv, y1.data()) == 0, "simulate: %s", kt_last_error());
+        f.input = u2.data();
+        f.input_der = du2.data();
+        CHECK(kt_simulate(&f, 2, gn, gv, y2.data()) == 0, "simulate: %s", kt_last_error());
+        double dev = 0, amp = 0;
+        for (int i = 0; i < n; ++i) {
+            dev = std::fmax(dev, std::fabs(y1[i] - y2[i]));
+            amp = std::fmax(amp, std::fabs(y2[i] - x[i]));
+        }
+        CHECK(dev == 0.0 && amp > 1e-4, "input_gain/offset_input: deviation %g from the scaled record (response %g)", dev, amp);
+    }
     if (failures) std::printf("%d failure(s)\n", failures);
     else std::printf("all passed\n");
     return failures ? 1 : 0;

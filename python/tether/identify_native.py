@@ -22,12 +22,18 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["Experiment", "FitResult", "PROGRESS", "experiment_from_trace", "library", "parameter_names", "parameter_start", "simulate", "fit", "deadlines", "DeadlinePassed", "bouc_wen_path",
+__all__ = ["Experiment", "FitResult", "MEASUREMENT_DEFAULTS", "PROGRESS", "experiment_from_trace", "library", "parameter_names", "parameter_start", "simulate", "fit", "deadlines", "DeadlinePassed", "bouc_wen_path",
            "spline_derivatives", "INPUT_NONE", "INPUT_FORCE", "INPUT_LOAD"]
 
 INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
 #: the engine's KT_IDENTIFY_API_VERSION this binding is written for
-API_VERSION = 4
+API_VERSION = 5
+#: parameter kinds of the engine's table (identify.h KT_PAR_*)
+KIND_REAL, KIND_SWITCH, KIND_INPUT, KIND_MEASUREMENT = 0, 1, 2, 3
+#: the measurement parameters of an experiment (identify.h KT_PAR_MEASUREMENT) and their defaults:
+#: the model is driven by input_gain * recorded input + offset_input (its derivatives by input_gain
+#: times the recorded ones) and the measured column is the model's output + offset_measured
+MEASUREMENT_DEFAULTS = {"offset_measured": 0.0, "offset_input": 0.0, "input_gain": 1.0}
 SCALE = {"auto": 0, "log": 1, "linear": 2}
 
 _DP = C.POINTER(C.c_double)
@@ -118,7 +124,8 @@ def library() -> C.CDLL:
 
 
 def parameter_names(kind: int | None = None) -> list[str]:
-    """Names the engine accepts (kind 0 Real parameters, 1 switches, 2 the input L0; None = all)."""
+    """Names the engine accepts (kind 0 Real parameters, 1 switches, 2 the input L0, 3 the
+    measurement parameters offset_measured, offset_input, input_gain; None = all)."""
     lib = library()
     out = []
     for i in range(lib.kt_parameter_count()):
@@ -253,7 +260,9 @@ def experiment_from_trace(trace, settings: Mapping[str, float] | None = None, we
 
 def simulate(exp: Experiment, params: Mapping[str, float] | None = None,
              outputs: Sequence[str] | None = None) -> np.ndarray:
-    """The experiment's output at its samples (n,), or n x len(outputs) if outputs are given."""
+    """The experiment's output at its samples (n,), or n x len(outputs) if outputs are given.
+    params may hold the measurement parameters (MEASUREMENT_DEFAULTS): the engine drives the model
+    with input_gain * input + offset_input and adds offset_measured to the measured column."""
     lib = library()
     keep: list = []
     s = exp._struct(keep)
