@@ -480,8 +480,10 @@ def predict(trace: Trace, spec: ModelSpec | str, params: dict) -> np.ndarray:
     from . import fit as F
 
     spec = (parse_model(spec) if isinstance(spec, str) else spec).for_experiment(trace.experiment)
+    from .nuisance import NUISANCE
+
     x = F._experiment(trace, spec, {})
-    return F._predict(x, {k: float(v) for k, v in params.items() if k in spec.parameters})
+    return F._predict(x, {k: float(v) for k, v in params.items() if k in spec.parameters or k in NUISANCE})
 
 
 def _truncated(trace: Trace, fraction: float) -> Trace:

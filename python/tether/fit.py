@@ -44,6 +44,7 @@ from typing import Callable, Iterable, Mapping, Sequence
 import numpy as np
 
 from . import identify_native as idn
+from . import nuisance as NZ
 from .models import (IWAN_EPS, IWAN_EPS_FIT, IWAN_K, IWAN_K_FIT, ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model,
                      write_params)
 from .run import _input_pieces, input_interpolation, record_period
@@ -84,6 +85,10 @@ class FitResult:
     stages: list = field(default_factory=list)          # per stage: name, free, rms, evaluations, seconds
     condition: float = float("nan")
     singular_values: list = field(default_factory=list)
+    # nuisance parameters (docs/nuisance.md): name -> value of every one fitted or given (fixed);
+    # which of them were fitted is in `free`, their intervals in ci95 like the law's
+    nuisance: dict = field(default_factory=dict)
+    nuisance_moved: list = field(default_factory=list)   # one line each: start -> value, in interval widths
 
     @property
     def intervals(self) -> dict:
@@ -116,6 +121,8 @@ class FitResult:
             "seconds": self.seconds,
             "status": self.status,
             "message": self.message,
+            "nuisance": dict(self.nuisance),
+            "nuisance_moved": list(self.nuisance_moved),
         }
 
 
@@ -852,6 +859,8 @@ def _experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str, floa
         settings.update(m=float(trace.payload_mass_kg), g=float(trace.gravity_m_s2),
                         x0=0.0 if P else float(trace.initial_displacement_m),
                         v0=0.0 if P else float(trace.initial_velocity_m_s))
+        # nuisance values given (fixed, or held between stages) win over the trace's metadata
+        settings.update({k: float(v) for k, v in settings_extra.items() if k in NZ.NUISANCE})
     t = np.asarray(trace.time, float)
     y = np.asarray(trace.measured, float)
     kind = {None: idn.INPUT_NONE, "force": idn.INPUT_FORCE, "load": idn.INPUT_LOAD}[trace.input_column]
@@ -898,10 +907,16 @@ def _check_names(names: Iterable[str], spec: ModelSpec, what: str) -> list[str]:
     known = set(idn.parameter_names(kind=0))
     out = []
     for n in names:
+        if n in NZ.NUISANCE:
+            if n in out:
+                raise FitError(f"{what} '{n}' given twice")
+            out.append(n)
+            continue
         if n in SWITCHES:
             raise FitError(f"{what} '{n}': a structural switch, chosen by the model string, not a parameter")
         if n in TRACE_PARAMETERS:
-            raise FitError(f"{what} '{n}': set by each trace's metadata (L0, m, g, x0, v0 are not fitted)")
+            raise FitError(f"{what} '{n}': set by each trace's metadata (L0 and g are not fitted; m, x0, v0 are "
+                           "nuisance parameters, docs/nuisance.md)")
         if n not in known:
             raise FitError(f"{what} '{n}': not a parameter of the FMU; the model '{spec.canonical}' has "
                            f"{', '.join(spec.parameters)}")
@@ -957,8 +972,13 @@ def _positive_floor(name: str, scales: dict) -> float:
 def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] | None = None,
                start: Mapping[str, float] | None = None, fixed: Mapping[str, float] | None = None,
                progress: Callable[[FitProgress], object] | None = None, n_starts: int = 1,
-               **engine_options) -> FitResult:
+               mass_band: float | None = None, **engine_options) -> FitResult:
     """Fit ``model`` to ``traces`` jointly (one shared parameter set).
+
+    ``free``, ``start`` and ``fixed`` may name the nuisance parameters m, x0, v0, offset_measured,
+    offset_input, input_gain (tether.nuisance, docs/nuisance.md); a free one a trace cannot
+    determine is refused (FitError naming the trace, the parameter and why). A free ``m`` stays in
+    payload_mass_kg * (1 +- mass_band) (default: the trace's mass_uncertainty_rel, else 0.3).
 
     free: names to fit (default: :func:`default_free_parameters` for each trace's experiment,
     united). start: start values (default: :func:`initial_estimate`). fixed: values of parameters
@@ -990,6 +1010,13 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
             raise FitError(f"parameter '{both[0]}' is both free and fixed")
     if not free_names:
         raise FitError(f"nothing to fit: every parameter of '{spec.canonical}' is fixed")
+    try:
+        if mass_band is not None:
+            mass_band = NZ.check_mass_band(mass_band, "mass_band")
+        NZ.check_free(traces, free_names)
+    except ValueError as e:
+        raise FitError(str(e)) from None
+    fixed_nuisance = {n: float(v) for n, v in fixed.items() if n in NZ.NUISANCE}
     for n, v in list(start.items()) + list(fixed.items()):
         if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(float(v)):
             raise FitError(f"parameter '{n}': value {v!r} is not a finite number")
@@ -1008,12 +1035,21 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
     box = {}
     scaling = {}
     for n in free_names:
+        if n in NZ.NUISANCE:
+            lo, hi, s, sc = NZ.nuisance_box(traces[0], n, mass_band)
+            if n in start:
+                if not lo <= float(start[n]) <= hi:
+                    raise FitError(f"start value for '{n}': {start[n]!r} is outside its range [{lo:g}, {hi:g}]")
+                s = float(start[n])
+            x0[n], box[n], scaling[n] = s, (lo, hi), sc
+            continue
         s = float(start[n]) if n in start else float(est.get(n, defaults[n]))
         lo, hi, s, sc = _bounds_and_start(n, s, fmu_bounds, scales)
         if n in start and s != float(start[n]):
             raise FitError(f"start value for '{n}': {start[n]!r} is outside the FMU's range [{lo:g}, {hi:g}]")
         x0[n], box[n], scaling[n] = s, (lo, hi), sc
     held = {n: v for n, v in model_values.items() if n not in free_names}
+    held.update(fixed_nuisance)
 
     # experiments and weights (inverse noise, normalized; periodic means: sqrt(K))
     exps = [_experiment(tr, spec, held) for tr in traces]
@@ -1036,11 +1072,14 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
         stride = int(0.1 / (2.0 * omega * dt)) if omega > 0 else 1
         opts["output_stride"] = max(1, min(stride, 50))
 
-    # stages: the elastic law and viscous damping, then everything
+    # stages: the elastic law and viscous damping (with the nuisance parameters, which a wrong mass
+    # or an offset would otherwise push into the law), then everything
     base = [n for n in free_names if n in _BASE]
+    nuisance_free = [n for n in free_names if n in NZ.NUISANCE]
     stages = []
-    if base and len(base) < len(free_names):
-        stages.append(("elastic law + viscous damping", base))
+    if base and len(base) + len(nuisance_free) < len(free_names):
+        stages.append(("elastic law + viscous damping" + (" + nuisance" if nuisance_free else ""),
+                       base + nuisance_free))
     stages.append(("all free parameters", list(free_names)))
 
     current = dict(x0)
@@ -1095,11 +1134,12 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
 
     def rms_of(values: Mapping[str, float]):
         ps = dict(model_values)
+        ps.update(fixed_nuisance)
         ps.update({n: float(values[n]) for n in free_names})
         pred = [_predict(x, ps) for x in exps]
         tot = float(np.sqrt(sum(np.sum((p - np.asarray(x.trace.measured, float)) ** 2) for p, x in zip(pred, exps))
                             / sum(len(x.trace.time) for x in exps)))
-        return ps, pred, tot
+        return {n: v for n, v in ps.items() if n not in NZ.NUISANCE}, pred, tot
 
     params, predictions, total = rms_of(current)
     message = r.message
@@ -1126,8 +1166,11 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
     # scale: relative to the start). Judge linear-scaled ones against their fitted value as well:
     # a value the data cannot tell from zero is not determined either.
     max_rel = float(engine_options.get("max_rel_std", 0.5))
+    # (not the nuisance parameters: an offset or initial state near zero is determined when its
+    # interval is narrow, whatever its size)
     loose = [n for n in free_names if scaling[n] == "linear" and n not in r.unidentifiable
-             and not std[n] <= max_rel * abs(values[n])]
+             and n not in NZ.NUISANCE and not std[n] <= max_rel * abs(values[n])]
+    nuisance = {**fixed_nuisance, **{n: values[n] for n in nuisance_free}}
     unid = [n for n in free_names if n in r.unidentifiable or n in loose]
     return FitResult(
         model=spec.canonical, parameters=params, free=list(free_names), values=values, std_error=std, ci95=ci,
@@ -1137,7 +1180,9 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
         predictions=predictions, evaluations=evaluations, seconds=_time.perf_counter() - t_begin,
         status=int(r.status), message=message, traces=[str(x.trace.stem.name) for x in exps],
         noise=[float(x.noise) for x in exps], start=dict(x0), stages=stage_log,
-        condition=float(r.condition), singular_values=[float(v) for v in r.singular_values])
+        condition=float(r.condition), singular_values=[float(v) for v in r.singular_values],
+        nuisance=nuisance,
+        nuisance_moved=NZ.moved_statement({n: values[n] for n in nuisance_free}, x0, ci))
 
 
 def _identifiability_text(r: idn.FitResult, names: Sequence[str], unid: Sequence[str], loose: Sequence[str],

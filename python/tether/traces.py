@@ -84,6 +84,11 @@ class Trace:
     measured: np.ndarray | None  # None only for an input-only trace (read_trace(require_measured=False))
     description: str = ""
     meta: dict[str, Any] = field(default_factory=dict, repr=False)  # the JSON as read
+    # half-width of the band, relative to payload_mass_kg, where the effective payload mass lies
+    # (None: not stated; 0: the mass is exact); docs/nuisance.md
+    mass_uncertainty_rel: float | None = None
+    # False: the force column carries an unknown gain (docs/nuisance.md)
+    force_gain_known: bool = True
 
     @property
     def name(self) -> str:
@@ -225,7 +230,8 @@ def _make_trace(stem: Path, csv_path: Path, json_path: Path, meta: dict, columns
         initial_displacement_m=float(x0), initial_velocity_m_s=float(v0),
         periodic_samples=P, time=time, input_column=input_col, input=inp,
         measured_column=measured_col, measured=measured,
-        description=str(meta.get("description", "")), meta=meta)
+        description=str(meta.get("description", "")), meta=meta,
+        mass_uncertainty_rel=meta.get("mass_uncertainty_rel"), force_gain_known=meta.get("force_gain_known", True))
 
 
 def _trace_from_columns(where: Path, meta: dict, given: dict, *, name: str, require_measured: bool) -> Trace:
@@ -387,6 +393,13 @@ def _check_meta(raw: dict, path: Path) -> dict:
     for key in ("initial_displacement_m", "initial_velocity_m_s"):
         if key in meta:
             meta[key] = _number(meta, key, key, path)
+
+    if "mass_uncertainty_rel" in meta:
+        meta["mass_uncertainty_rel"] = _number(meta, "mass_uncertainty_rel", "mass_uncertainty_rel", path,
+                                               nonnegative=True)
+    if "force_gain_known" in meta and not isinstance(meta["force_gain_known"], bool):
+        raise TraceError(f"{path}: key 'force_gain_known': value {_show(meta['force_gain_known'])} is not a boolean; "
+                         "expected true (the force column is in newtons) or false (it carries an unknown gain)", path)
 
     if "periodic_samples" in meta:
         P = meta["periodic_samples"]

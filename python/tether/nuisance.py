@@ -1,0 +1,194 @@
+"""Nuisance parameters: what a record knows imperfectly about its own experiment (docs/nuisance.md).
+
+- ``m``: the effective payload mass (payload rig). The trace's ``payload_mass_kg`` is where it
+  starts; a fit keeps it in the band ``payload_mass_kg * (1 +- rel)`` (:func:`mass_bounds`).
+- ``x0``, ``v0``: the initial state of a payload record that does not start where its JSON says
+  (a forced record cut out of a longer run starts in motion).
+- ``offset_measured``, ``offset_input``, ``input_gain``: the measurement (the engine's
+  KT_PAR_MEASUREMENT parameters, identify_native.MEASUREMENT_DEFAULTS): the model is driven by
+  ``input_gain * recorded input + offset_input`` and the measured column is the model's output
+  ``+ offset_measured``. The engine applies them (fit, discover, predict); :func:`drive_input` and
+  :func:`measured_output` are the same rule for the FMU's path (tether.run).
+
+Which of them a record can determine, and why the others are refused (:func:`refusal`), rests on
+the scaling facts in docs/nuisance.md: on a free vibration every force on the payload scales with
+the mass, so the mass is not identifiable beside the law's force parameters; on a forced record
+``m x'' = m g + G f - T``, so the mass and the force gain G are one nuisance in two forms.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .identify_native import MEASUREMENT_DEFAULTS
+from .traces import Trace
+
+__all__ = ["NUISANCE", "MEASUREMENT", "STATE", "DEFAULT_MASS_BAND", "INPUT_GAIN_BOUNDS", "mass_band_rel",
+           "check_mass_band", "mass_bounds", "refusal", "check_free", "freeable", "nuisance_box",
+           "drive_input", "measured_output", "moved_statement"]
+
+#: the measurement parameters and their defaults (the engine's own list)
+MEASUREMENT = tuple(MEASUREMENT_DEFAULTS)
+#: the initial state of a payload record
+STATE = ("x0", "v0")
+#: every nuisance parameter a fit may free, in report order
+NUISANCE = ("m", *STATE, *MEASUREMENT)
+#: half-width of the mass band, relative, where a trace states no mass_uncertainty_rel
+DEFAULT_MASS_BAND = 0.3
+#: the range a fitted input gain keeps to
+INPUT_GAIN_BOUNDS = (0.2, 5.0)
+
+
+def check_mass_band(rel, where: str = "--mass-band") -> float:
+    """``rel`` as a float if it is a number in [0, 1); ValueError naming ``where`` otherwise."""
+    try:
+        v = float(rel)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: value {rel!r} is not a number; expected a relative half-width in [0, 1), "
+                         "e.g. 0.3 for +-30 %") from None
+    if not (math.isfinite(v) and 0.0 <= v < 1.0):
+        raise ValueError(f"{where}: value {rel!r}; expected a relative half-width in [0, 1), e.g. 0.3 for +-30 % "
+                         "(the mass must stay positive)")
+    return v
+
+
+def mass_band_rel(trace: Trace, rel: float | None = None) -> float:
+    """The band's half-width relative to payload_mass_kg: ``rel`` if given, else the trace's
+    ``mass_uncertainty_rel``, else DEFAULT_MASS_BAND."""
+    if rel is not None:
+        return check_mass_band(rel)
+    if trace.mass_uncertainty_rel is not None:
+        return check_mass_band(trace.mass_uncertainty_rel, f"{trace.json_path}: key 'mass_uncertainty_rel'")
+    return DEFAULT_MASS_BAND
+
+
+def mass_bounds(trace: Trace, rel: float | None = None) -> tuple[float, float]:
+    """(low, high) of the effective mass: payload_mass_kg * (1 -+ band)."""
+    m = float(trace.payload_mass_kg)
+    b = mass_band_rel(trace, rel)
+    return m * (1.0 - b), m * (1.0 + b)
+
+
+def refusal(trace: Trace, name: str, free: Sequence[str] = ()) -> str | None:
+    """Why ``name`` cannot be freed on ``trace`` (with the other ``free`` names), in a few words;
+    None if it can. Only nuisance names are judged."""
+    exp = trace.experiment
+    periodic = bool(trace.periodic_samples)
+    if name == "m":
+        if trace.rig == "load":
+            return f"the {exp} record runs on the load rig, where the payload mass plays no part"
+        if exp == "free_vibration":
+            return ("a free vibration cannot determine the mass: every force on the payload scales with it, so "
+                    "(s m, s x the law's force parameters) gives the same record")
+        if trace.mass_uncertainty_rel == 0:
+            return "the trace states mass_uncertainty_rel = 0 (the mass is exact)"
+        if "input_gain" in free:
+            return ("m and input_gain cannot both be free: (s m, s G, s x the law's force parameters) gives the "
+                    "same forced record; free one of them")
+    if name in STATE:
+        if trace.rig == "load":
+            return f"the {exp} record runs on the load rig, which has no payload state"
+        if periodic:
+            return "a periodic record is fitted in its periodic steady state, which forgets the initial state"
+    if name in ("offset_input", "input_gain") and trace.input_column is None:
+        return f"a {exp} record has no input"
+    if name == "input_gain" and trace.rig == "load":
+        return ("on the load rig (s G, s x the law's force parameters) gives the same elongation; the gain of "
+                "the load is not identifiable")
+    return None
+
+
+def check_free(traces: Sequence[Trace], free: Sequence[str]) -> None:
+    """ValueError, one line naming the trace file, the parameter and why, for the first nuisance
+    name in ``free`` that one of ``traces`` cannot determine."""
+    names = [n for n in free if n in NUISANCE]
+    if not names:
+        return
+    if len(traces) > 1:
+        masses = {float(t.payload_mass_kg or 0.0) for t in traces}
+        for n in names:
+            if n != "m" or len(masses) > 1:
+                raise ValueError(f"{traces[1].json_path}: parameter '{n}': a nuisance parameter belongs to one "
+                                 f"record{' (or records of one payload mass)' if n == 'm' else ''}; fit the "
+                                 f"{len(traces)} traces one at a time")
+    for tr in traces:
+        for n in names:
+            why = refusal(tr, n, free)
+            if why:
+                raise ValueError(f"{tr.json_path}: parameter '{n}' cannot be freed: {why}")
+
+
+def freeable(trace: Trace) -> list[str]:
+    """The nuisance names that :func:`refusal` lets a fit free on ``trace`` (m and input_gain are
+    both listed where each alone may be free)."""
+    return [n for n in NUISANCE if refusal(trace, n) is None]
+
+
+def _initial_velocity(trace: Trace) -> float:
+    """The slope of the measured column at its start: a quadratic through the samples of the
+    first twentieth of the record's dominant period (at least 5 samples)."""
+    t = np.asarray(trace.time, float)
+    y = np.asarray(trace.measured, float)
+    dt = float(np.median(np.diff(t)))
+    spec = np.abs(np.fft.rfft((y - y.mean()) * np.hanning(len(y))))
+    spec[0] = 0.0
+    f = float(np.fft.rfftfreq(len(y), dt)[int(np.argmax(spec))]) or 1.0 / (t[-1] - t[0])
+    n = min(len(t), max(5, int(round(1.0 / (20.0 * f * dt)))))
+    c = np.polyfit(t[:n] - t[0], y[:n], 2)
+    return float(c[1])
+
+
+def nuisance_box(trace: Trace, name: str, mass_band: float | None = None) -> tuple[float, float, float, str]:
+    """(lower, upper, start, scaling) of a free nuisance parameter on ``trace``: the mass in its
+    band (start: the trace's), the initial state from the record's start (x0 its first sample, v0
+    the slope there), offsets from 0 and the gain from 1 (INPUT_GAIN_BOUNDS)."""
+    if name == "m":
+        lo, hi = mass_bounds(trace, mass_band)
+        return lo, hi, float(trace.payload_mass_kg), "log"
+    if name == "x0":
+        return -math.inf, math.inf, float(trace.measured[0]), "linear"
+    if name == "v0":
+        return -math.inf, math.inf, _initial_velocity(trace), "linear"
+    if name == "input_gain":
+        return INPUT_GAIN_BOUNDS[0], INPUT_GAIN_BOUNDS[1], 1.0, "log"
+    if name in MEASUREMENT:
+        return -math.inf, math.inf, MEASUREMENT_DEFAULTS[name], "linear"
+    raise KeyError(f"'{name}' is not a nuisance parameter ({', '.join(NUISANCE)})")
+
+
+def drive_input(recorded: np.ndarray, derivatives: np.ndarray | None, params: Mapping[str, float]):
+    """The input and its derivatives that drive the model for a recorded input: input_gain *
+    recorded + offset_input, derivatives times input_gain (the engine's set_input)."""
+    g = float(params.get("input_gain", MEASUREMENT_DEFAULTS["input_gain"]))
+    o = float(params.get("offset_input", MEASUREMENT_DEFAULTS["offset_input"]))
+    u = g * np.asarray(recorded, float) + o
+    return u, (None if derivatives is None else g * np.asarray(derivatives, float))
+
+
+def measured_output(model_output: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
+    """What the measured column reads for the model's output: + offset_measured."""
+    return np.asarray(model_output, float) + float(params.get("offset_measured",
+                                                              MEASUREMENT_DEFAULTS["offset_measured"]))
+
+
+def moved_statement(values: Mapping[str, float], start: Mapping[str, float],
+                    intervals: Mapping[str, tuple]) -> list[str]:
+    """One line per nuisance parameter in ``values``: where it started, where it ended, the change
+    in units of its 95 % interval's width, and whether the interval excludes the start (moved)."""
+    lines = []
+    for n in NUISANCE:
+        if n not in values:
+            continue
+        v, s = float(values[n]), float(start.get(n, values[n]))
+        lo, hi = (float(x) for x in intervals.get(n, (math.nan, math.nan)))
+        width = hi - lo
+        d = v - s
+        widths = d / width if width > 0 else math.inf if d else 0.0
+        rel = f" ({d / s:+.1%})" if s else ""
+        verdict = "moved" if not (lo <= s <= hi) else "did not move beyond its interval"
+        lines.append(f"{n}: {s:.6g} -> {v:.6g}, change {d:+.4g}{rel} = {widths:+.2f} interval widths "
+                     f"[{lo:.6g}, {hi:.6g}]: {verdict}")
+    return lines
