@@ -1217,6 +1217,9 @@ def write_fit_params(path: str | Path, result: FitResult) -> Path:
         "fitted": list(result.free),
         "traces": list(result.traces),
     }
+    if result.nuisance:
+        # the record's, not the model's: `tether validate --params` applies them to these traces only
+        extra["nuisance"] = {n: float(v) for n, v in result.nuisance.items()}
     return write_params(path, result.model, result.parameters, extra)
 
 

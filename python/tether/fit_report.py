@@ -82,6 +82,14 @@ def write_fit_report(directory: str | Path, traces: Sequence, result) -> Path:
                     f"<td>[{lo:.6g}, {hi:.6g}]</td><td>{result.start.get(n, float('nan')):.6g}</td>"
                     f"<td class=l>{'not determined' if bad else ''}</td></tr>")
     held = "".join(f"<code>{esc(k)}</code> = {v:.6g}; " for k, v in result.parameters.items() if k not in result.free)
+    nuisance = ""
+    if result.nuisance:
+        fitted = [n for n in result.nuisance if n in result.free]
+        given = "; ".join(f"<code>{esc(n)}</code> = {v:.6g}" for n, v in result.nuisance.items() if n not in fitted)
+        nuisance = ("<h2>Nuisance parameters</h2><p>What the record knows imperfectly about its experiment "
+                    "(docs/nuisance.md); fitted ones are in the table above.</p>"
+                    + (f"<pre>{esc(chr(10).join(result.nuisance_moved))}</pre>" if result.nuisance_moved else "")
+                    + (f"<p>Given: {given}</p>" if given else ""))
     per = "".join(f"<tr><td class=l>{esc(n)}</td><td>{r:.4g}</td><td>{s:.3g}</td></tr>"
                   for n, r, s in zip(result.traces, result.rms_per_trace, result.noise))
     stages = "".join(f"<tr><td class=l>{esc(s['stage'])}</td><td class=l>{esc(', '.join(s['free']))}</td>"
@@ -98,6 +106,7 @@ def write_fit_report(directory: str | Path, traces: Sequence, result) -> Path:
 <table><tr><th>parameter</th><th>value</th><th>std error</th><th>95 % interval</th><th>start (from the data)</th><th></th></tr>
 {''.join(rows)}</table>
 <p>Held fixed: {held or 'nothing'}</p>
+{nuisance}
 <h2>Traces</h2>
 <table><tr><th>trace</th><th>RMS error</th><th>noise σ estimated from the data</th></tr>{per}</table>
 <h2>Identifiability</h2>

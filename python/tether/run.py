@@ -346,13 +346,18 @@ def _step_failed(run: _Run, st: int, t: float, h: float, t_label):
 
 def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
              params: Mapping[str, float] | None = None, *, periodic_tol: float = 1e-3,
-             max_periods: int = 20, check: bool = True) -> SimResult:
+             max_periods: int = 20, check: bool = True, nuisance: Mapping[str, float] | None = None) -> SimResult:
     """Simulate ``trace`` with ``model`` and ``params`` (FMU start values for the rest).
 
     ``params`` may name any FMU parameter (see :func:`tether.models.check_parameters`); the
-    trace's own values for L0, m, g, x0, v0 win. Raises SimulationError if the FMU fails and
-    FMUError if it is missing.
+    trace's own values for L0, m, g, x0, v0 win. ``nuisance`` (tether.nuisance, e.g. a fit's
+    FitResult.nuisance for this trace): m, x0, v0 over the trace's, and the measurement applied
+    as the engine applies it (input_gain, offset_input on the input, offset_measured on the
+    prediction). Raises SimulationError if the FMU fails and FMUError if it is missing.
     """
+    from .nuisance import drive_input, measured_output
+
+    nuisance = dict(nuisance or {})
     if not isinstance(trace, Trace):
         trace = read_trace(trace)
     spec = parse_model(model) if isinstance(model, str) else model
@@ -375,6 +380,7 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
         trace_values.update(m=float(trace.payload_mass_kg), g=float(trace.gravity_m_s2),
                             x0=0.0 if periodic else float(trace.initial_displacement_m),
                             v0=0.0 if periodic else float(trace.initial_velocity_m_s))
+        trace_values.update({k: float(nuisance[k]) for k in ("m", "x0", "v0") if k in nuisance})
     values.update(trace_values)
 
     t = trace.time
@@ -401,6 +407,9 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
         else:
             in_values = in_ders = None
 
+    if in_values is not None:
+        in_values, in_ders = drive_input(in_values, in_ders, nuisance)
+
     notes: list[str] = []
     if periodic and in_name and N > periodic:
         per = trace.input.reshape(-1, periodic)
@@ -418,7 +427,7 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
         run.set_values(values)
         start_inputs = {"L0": L0}
         if in_name:
-            start_inputs[in_name] = float(trace.input[0])
+            start_inputs[in_name] = float(drive_input(trace.input[:1], None, nuisance)[0][0])
         run.set_values(start_inputs)
         run.check(eng.enter_init(run.comp), "fmi2EnterInitializationMode")
         run.check(eng.exit_init(run.comp), "fmi2ExitInitializationMode")
@@ -489,6 +498,7 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
     all_values = dict(values)
     all_values["L0"] = L0
     return SimResult(time=t.copy(), measured_column=trace.measured_column,
-                     predicted=np.ascontiguousarray(out[:, 0]), tension=np.ascontiguousarray(out[:, 1]),
+                     predicted=np.ascontiguousarray(measured_output(out[:, 0], nuisance)),
+                     tension=np.ascontiguousarray(out[:, 1]),
                      model=spec, parameters=all_values, warnings=warnings, periods=periods,
                      final_strain=strain.value)

@@ -96,9 +96,11 @@ def metrics(measured: np.ndarray, predicted: np.ndarray, time: np.ndarray) -> di
 
 
 def validate_trace(trace: Trace | str | Path, model: str | ModelSpec | None = None,
-                   params: Mapping[str, float] | None = None) -> Validation:
+                   params: Mapping[str, float] | None = None,
+                   nuisance: Mapping[str, float] | None = None) -> Validation:
     """Validate one trace. Without ``model``, a synthetic trace is run with the model that
-    generated it, any other trace with the linear baseline."""
+    generated it, any other trace with the linear baseline. ``nuisance``: the trace's nuisance
+    parameters (a fit's FitResult.nuisance on it; tether.nuisance), applied as the fit applied them."""
     if not isinstance(trace, Trace):
         trace = read_trace(trace)
     source = "command line"
@@ -111,7 +113,7 @@ def validate_trace(trace: Trace | str | Path, model: str | ModelSpec | None = No
         else:
             model, source = "linear", "default (linear baseline)"
     spec = parse_model(model) if isinstance(model, str) else model
-    result = simulate(trace, spec, params or {})
+    result = simulate(trace, spec, params or {}, nuisance=nuisance)
     m = metrics(trace.measured, result.predicted, trace.time)
     sigma = stated_noise(trace)
     within = None if sigma is None else bool(m["rms"] <= WITHIN_NOISE_FACTOR * sigma)

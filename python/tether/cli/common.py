@@ -152,3 +152,23 @@ def positive_number(what: str):
             raise argparse.ArgumentTypeError(f"expected a positive number ({what}), got {text!r}")
         return v
     return parse
+
+
+def add_mass_band_argument(parser, what: str = "a free m") -> None:
+    """--mass-band REL (tether fit, tether discover): the band of the effective payload mass."""
+    parser.add_argument("--mass-band", metavar="REL", dest="mass_band",
+                        help=f"keep {what} within payload_mass_kg * (1 +- REL), 0 <= REL < 1 (default: the "
+                             "trace's mass_uncertainty_rel, else 0.3; docs/nuisance.md)")
+
+
+def mass_band_argument(args) -> float | None:
+    """The checked --mass-band value (None if not given); CLIError (exit 2) for a bad one."""
+    from ..nuisance import check_mass_band
+    from . import CLIError
+
+    if getattr(args, "mass_band", None) is None:
+        return None
+    try:
+        return check_mass_band(args.mass_band)
+    except ValueError as e:
+        raise CLIError(str(e)) from None

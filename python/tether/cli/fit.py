@@ -13,7 +13,15 @@ the native identification engine, which runs the FMU's own physics exactly as th
 Start values come from the data (equation error with filtered derivatives for payload traces,
 the static law and Kawabata's energies for load tests, linear least squares for creep), then a
 staged Levenberg-Marquardt fit: the elastic law and viscous damping first, then everything free.
-Each trace's L0, m, g, x0 and v0 come from its metadata and are not fitted.
+Each trace's L0 and g come from its metadata; so do m, x0 and v0 unless --free names them.
+
+Nuisance parameters (docs/nuisance.md) may be freed beside the law's: m (the effective payload
+mass, kept within payload_mass_kg * (1 +- --mass-band)), x0, v0 (a forced record that starts in
+motion), offset_measured (measured column = model + offset), offset_input and input_gain (the
+model is driven by input_gain * recorded input + offset_input). What a record cannot determine
+is refused: m on a free vibration (every force scales with the mass) or a load-rig record, m
+together with input_gain (one nuisance in two forms), x0/v0 on a periodic or load-rig record.
+The table then says which nuisance parameters moved from their start, and by how much.
 
 --free names the parameters to fit (default: what the data of each trace's experiment can
 determine for the model; `tether fit --help` lists the rule in the docs of tether.fit). With
@@ -42,6 +50,8 @@ def add_arguments(parser) -> None:
                         help="parameter file: starts for the free parameters, values for the others")
     parser.add_argument("--out", metavar="PARAMS.json", required=True, help="fitted parameter file to write")
     parser.add_argument("--report", metavar="DIR", help="write DIR/index.html with plots and DIR/fit.json")
+    from .common import add_mass_band_argument
+    add_mass_band_argument(parser)
     parser.add_argument("--starts", metavar="N", type=int, default=1,
                         help="starts of the final stage: the data-based one, then N-1 random ones around it "
                              "(default 1)")
@@ -51,8 +61,10 @@ def run(args) -> int:
     from ..fit import FitError, fit_traces, write_fit_params
     from ..models import TRACE_PARAMETERS, parse_model, read_params
     from . import CLIError, RUN_ERROR
-    from .common import check_output_path, check_report_dir, read_checked_trace
+    from .common import check_output_path, check_report_dir, mass_band_argument, read_checked_trace
     from .console import Progress, note
+
+    mass_band = mass_band_argument(args)
 
     traces = [read_checked_trace(p) for p in args.traces]    # read (and check) every trace first
     pf = read_params(args.params) if args.params else None
@@ -98,7 +110,7 @@ def run(args) -> int:
 
         try:
             result = fit_traces(traces, spec, free=free, start=start, fixed=fixed, progress=progress,
-                                n_starts=args.starts)
+                                n_starts=args.starts, mass_band=mass_band)
         except FitError as e:
             raise CLIError(f"--free: {e}" if args.free is not None and "free parameter" in str(e) else str(e)) from None
         except RuntimeError as e:
@@ -153,6 +165,17 @@ def _units(result, traces) -> dict:
     # "1" is modelDescription.xml's unit of a pure number: shown as none
     units = {n: variables[n].unit if n in variables and variables[n].unit != "1" else "" for n in result.parameters}
     units["rms"] = _measured_unit(traces)
+    # the nuisance parameters: m, x0, v0 as the FMU's; the offsets in their columns' units
+    from ..traces import COLUMN_UNITS
+
+    for n in result.nuisance:
+        if n in variables:
+            units[n] = variables[n].unit
+        elif n == "offset_measured":
+            units[n] = units["rms"]
+        elif n == "offset_input":
+            found = {COLUMN_UNITS.get(tr.input_column or "", "") for tr in traces}
+            units[n] = found.pop() if len(found) == 1 else ""
     return units
 
 
@@ -185,6 +208,10 @@ def result_table(r, units: dict | None = None) -> str:
     lines.append("")
     for name, rms, noise in zip(r.traces, r.rms_per_trace, r.noise):
         lines.append(f"{name}: RMS error {rms:.4g}{u_rms} (noise estimated from the data {noise:.3g}{u_rms})")
+    if r.nuisance_moved:
+        lines.append("")
+        lines.append("nuisance parameters (start -> fitted, change in widths of the 95 % interval):")
+        lines += ["  " + ln for ln in r.nuisance_moved]
     lines.append("")
     lines.append(r.identifiability_report)
     return "\n".join(lines)

@@ -69,16 +69,23 @@ def run(args) -> int:
         model = "linear"
     params = dict(pf.parameters) if pf else None
     report = check_report_dir(args.report)
+    # a fit's nuisance parameters belong to the traces it was fitted on (tether.nuisance)
+    nuisance = dict(pf.extra.get("nuisance") or {}) if pf else {}
+    nuisance_traces = set(pf.extra.get("traces") or []) if nuisance else set()
+
+    def nuisance_of(tr):
+        return nuisance if tr.stem.name in nuisance_traces else None
 
     rows, images = [], []
     t_all = time.time()
     if args.scheduler:                               # every trace a task on the cluster
         from .sweep import cluster_map
-        done = cluster_map(args.scheduler, validate_trace, [(tr, model, params) for tr in traces], "trace")
+        done = cluster_map(args.scheduler, validate_trace, [(tr, model, params, nuisance_of(tr)) for tr in traces],
+                           "trace")
     with Progress("validate", len(traces), unit="trace") as bar:
         for i, tr in enumerate(traces, 1):
             t0 = time.time()
-            v = done[i - 1] if args.scheduler else validate_trace(tr, model, params)
+            v = done[i - 1] if args.scheduler else validate_trace(tr, model, params, nuisance_of(tr))
             row = v.as_dict()
             row["within_tolerance"] = bool(v.nrmse <= args.tolerance)
             row["unit"] = COLUMN_UNITS[tr.measured_column]     # of rms_error, max_error, noise_sigma
