@@ -93,6 +93,10 @@ def test_free_vibration_is_unchanged_when_the_mass_and_every_force_scale_togethe
     y2 = idn.simulate(x.exp, {**scaled, "m": s * M_JSON})
     assert np.ptp(y1) > 1e-2
     assert np.max(np.abs(y1 - y2)) < 1e-9
+    # ... which is why freeing m on a free vibration is refused
+    from tether.nuisance import refusal
+
+    assert "scales" in refusal(tr, "m")
 
 
 # ---- a forced record that starts in motion -------------------------------------------------------
@@ -135,16 +139,20 @@ def test_forced_record_with_a_heavier_payload_needs_m_or_the_gain_free(capsys):
 
 # ---- a load test with offsets on both columns ----------------------------------------------------
 def test_load_test_offsets_on_both_columns_are_recovered(capsys):
+    # Kawabata's branches are power laws: shifted in load and elongation they are no longer of the
+    # family, so the two offsets are separable (a cubic shifted is another cubic: docs/nuisance.md)
     t = np.linspace(0.0, 200.0, 2001)
-    load = 800.0 * np.interp(t, [0, 80, 100, 180, 200], [0, 1, 1, 0, 0])
-    truth = {"a1": 30000.0, "a2": 4.0e5, "a3": 2.0e7, "offset_measured": 0.004, "offset_input": 25.0}
+    load = 100.0 * np.interp(t, [0, 40, 60, 100, 120, 160, 200], [0, 1, 1, 0.3, 0.3, 1, 0])
+    law = {"kaw_LT": 0.7, "kaw_RT": 0.5, "kaw_F_ref": 88.0, "kaw_residual": 0.1}
+    truth = {**law, "offset_measured": 0.004, "offset_input": 2.0}
     noise = 2e-5
-    tr = _synthetic("load_unload", t, load, truth, model="cubic", noise=noise)
-    r = fit_traces([tr], "cubic", free=["a1", "a2", "a3", "offset_measured", "offset_input"])
+    tr = _synthetic("load_unload", t, load, truth, model="kawabata", noise=noise)
+    r = fit_traces([tr], "kawabata", free=[*law, "offset_measured", "offset_input"])
     _say(capsys, "\n".join(_row(r, n, truth[n]) for n in r.free) + f"\nrms/noise {r.rms / noise:.3f}")
     for n in ("offset_measured", "offset_input"):
-        assert _inside(r, n, truth[n]), (n, r.values[n], r.ci95[n])
-    assert r.rms <= 1.2 * noise
+        lo, hi = r.ci95[n]
+        assert lo <= truth[n] <= hi and hi - lo < abs(truth[n]) / 5, (n, r.values[n], r.ci95[n])
+    assert r.rms <= 1.2 * noise and not r.unidentifiable
 
 
 # ---- the measurement rule: the engine's and the FMU's path agree ---------------------------------
@@ -191,6 +199,15 @@ def test_m_with_the_gain_and_the_state_of_a_periodic_or_load_record_are_refused(
     for n, needle in (("m", "payload mass plays no part"), ("v0", "no payload state")):
         with pytest.raises(FitError, match=needle):
             fit_traces([load], "linear", free=["EA", n])
+
+
+def test_mass_form_follows_the_trace_keys():
+    from tether.nuisance import mass_form
+
+    assert mass_form(_forced(TRUTH)) == "m"
+    assert mass_form(_forced(TRUTH, extra={"force_gain_known": False})) == "input_gain"
+    assert mass_form(_forced(TRUTH, extra={"mass_uncertainty_rel": 0})) is None
+    assert mass_form(_free_vibration()) is None
 
 
 def test_the_mass_band_bounds_m(capsys):

@@ -27,7 +27,7 @@ from .identify_native import MEASUREMENT_DEFAULTS
 from .traces import Trace
 
 __all__ = ["NUISANCE", "MEASUREMENT", "STATE", "DEFAULT_MASS_BAND", "INPUT_GAIN_BOUNDS", "mass_band_rel",
-           "check_mass_band", "mass_bounds", "refusal", "check_free", "freeable", "nuisance_box",
+           "check_mass_band", "mass_bounds", "mass_form", "refusal", "check_free", "freeable", "nuisance_box",
            "drive_input", "measured_output", "moved_statement"]
 
 #: the measurement parameters and their defaults (the engine's own list)
@@ -125,6 +125,18 @@ def freeable(trace: Trace) -> list[str]:
     """The nuisance names that :func:`refusal` lets a fit free on ``trace`` (m and input_gain are
     both listed where each alone may be free)."""
     return [n for n in NUISANCE if refusal(trace, n) is None]
+
+
+def mass_form(trace: Trace) -> str | None:
+    """Which form of the mass nuisance a fit of ``trace`` should free: on a forced record
+    ``input_gain`` where the trace says the force carries an unknown gain (force_gain_known false),
+    else ``m`` unless its mass is stated exact (mass_uncertainty_rel 0); None on records where
+    neither can be freed (free vibration, load rig) or nothing is uncertain."""
+    if trace.experiment != "forced":
+        return None
+    if not trace.force_gain_known:
+        return "input_gain"
+    return None if trace.mass_uncertainty_rel == 0 else "m"
 
 
 def _initial_velocity(trace: Trace) -> float:
