@@ -294,6 +294,13 @@ def test_cli_fit_reports_the_nuisance_and_validate_applies_it(tmp_path, run_cli)
     params = json.loads(out.read_text())
     check_schema(params)
     assert params["nuisance"]["m"] == pytest.approx(m_true, rel=1e-3)
+    # sweep --samples draws the law from such a file (its marginal), not the record's nuisance
+    from tether.sweep import fit_uncertainty
+
+    extra = {k: v for k, v in params.items() if k not in ("format", "model", "parameters")}
+    names, values, errors, corr = fit_uncertainty(extra, params["parameters"], "P.json")
+    assert names == ["EA", "c0"] and corr.shape == (2, 2)
+    assert corr[0, 1] == pytest.approx(params["correlation"]["matrix"][0][1])
     status, stdout, err = run_cli("validate", stem, "--params", out, "--report", tmp_path / "val")
     assert status == 0, err
     v = json.loads((tmp_path / "val" / "validation.json").read_text())["traces"][0]

@@ -168,6 +168,14 @@ def fit_uncertainty(extra: Mapping, parameters: Mapping[str, float], where: str)
     matrix = np.asarray(corr.get("matrix"), dtype=float)
     if not names or matrix.shape != (len(names), len(names)):
         raise SweepError(f"{where}: key 'correlation': expected 'parameters' and a square 'matrix' of that size")
+    # a fit's nuisance parameters (docs/nuisance.md) belong to its record, not to the model: the
+    # draws are of the law, from its marginal (the law's rows and columns of the correlation)
+    from .nuisance import NUISANCE
+
+    law = [i for i, n in enumerate(names) if n not in NUISANCE]
+    names, matrix = [names[i] for i in law], matrix[np.ix_(law, law)]
+    if not names:
+        raise SweepError(f"{where}: the fit freed only nuisance parameters; --samples draws the law's")
     values, errors = [], []
     for n in names:
         if n not in parameters or n not in se:
