@@ -155,6 +155,17 @@ def test_load_test_offsets_on_both_columns_are_recovered(capsys):
     assert r.rms <= 1.2 * noise and not r.unidentifiable
 
 
+def test_load_test_offsets_on_a_cubic_law_are_flagged_not_determined():
+    # a cubic through the origin shifted by (d_eps, d_T) with d_T = F(-d_eps) is another cubic
+    # through the origin: the record cannot separate the two offsets, and the fit must say so
+    t = np.linspace(0.0, 200.0, 2001)
+    load = 800.0 * np.interp(t, [0, 80, 100, 180, 200], [0, 1, 1, 0, 0])
+    truth = {"a1": 30000.0, "a2": 4.0e5, "a3": 2.0e7, "offset_measured": 0.004, "offset_input": 25.0}
+    tr = _synthetic("load_unload", t, load, truth, model="cubic")
+    r = fit_traces([tr], "cubic", free=["a1", "a2", "a3", "offset_measured", "offset_input"])
+    assert "offset_input" in r.unidentifiable or "offset_measured" in r.unidentifiable, r.identifiability_report
+
+
 # ---- the measurement rule: the engine's and the FMU's path agree ---------------------------------
 def test_the_fmu_path_applies_the_nuisance_parameters_as_the_engine_does():
     from tether.discover import predict
