@@ -851,7 +851,8 @@ def _experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str, floa
     if sp.rig == "payload":
         settings.update(m=float(trace.payload_mass_kg), g=float(trace.gravity_m_s2),
                         x0=0.0 if P else float(trace.initial_displacement_m),
-                        v0=0.0 if P else float(trace.initial_velocity_m_s))
+                        v0=0.0 if P else float(trace.initial_velocity_m_s),
+                        line_density=float(trace.line_density_kg_m))
     t = np.asarray(trace.time, float)
     y = np.asarray(trace.measured, float)
     kind = {None: idn.INPUT_NONE, "force": idn.INPUT_FORCE, "load": idn.INPUT_LOAD}[trace.input_column]

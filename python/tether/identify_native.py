@@ -228,13 +228,13 @@ class Experiment:
 
 def experiment_from_trace(trace, settings: Mapping[str, float] | None = None, weight: float = 1.0) -> Experiment:
     """An Experiment for a checked trace (tether.traces.Trace): rig, input, measured column, L0,
-    payload mass, gravity, initial state and periodic_samples from the trace; `settings` adds the
+    payload mass, line density, gravity, initial state and periodic_samples from the trace; `settings` adds the
     model's switches and fixed parameters (e.g. {"stiffness": 2, "damping": 2, "hysteresis": 3})."""
     payload = trace.experiment in ("free_vibration", "forced")
     st: dict[str, float] = {"rig": 2 if payload else 3, "L0": float(trace.length_m), "g": float(trace.gravity_m_s2)}
     if payload:
         st.update(m=float(trace.payload_mass_kg), x0=float(trace.initial_displacement_m),
-                  v0=float(trace.initial_velocity_m_s))
+                  v0=float(trace.initial_velocity_m_s), line_density=float(trace.line_density_kg_m))
     st.update(settings or {})
     kind = {None: INPUT_NONE, "force": INPUT_FORCE, "load": INPUT_LOAD}[trace.input_column]
     P = int(trace.periodic_samples or 0)

@@ -350,7 +350,7 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
     """Simulate ``trace`` with ``model`` and ``params`` (FMU start values for the rest).
 
     ``params`` may name any FMU parameter (see :func:`tether.models.check_parameters`); the
-    trace's own values for L0, m, g, x0, v0 win. Raises SimulationError if the FMU fails and
+    trace's own values for L0, m, g, x0, v0, line_density win. Raises SimulationError if the FMU fails and
     FMUError if it is missing.
     """
     if not isinstance(trace, Trace):
@@ -374,7 +374,8 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
     if spec.rig == "payload":
         trace_values.update(m=float(trace.payload_mass_kg), g=float(trace.gravity_m_s2),
                             x0=0.0 if periodic else float(trace.initial_displacement_m),
-                            v0=0.0 if periodic else float(trace.initial_velocity_m_s))
+                            v0=0.0 if periodic else float(trace.initial_velocity_m_s),
+                            line_density=float(trace.line_density_kg_m))
     values.update(trace_values)
 
     t = trace.time
