@@ -47,15 +47,13 @@ double payload_carried_mass(const tether_params *p, double L0)
     return p->m + 0.5 * p->line_density * L0;
 }
 
-/* M_eff / m = mu / beta^2 for the first mode of a uniform elastic line (mass w L0) fixed at its top
- * with an end mass m, mu = w L0 / m, beta the root in [0, pi/2) of beta tan(beta) = mu */
-static double first_mode_mass_ratio(double mu)
+/* beta in (0, pi/2) with beta tan(beta) = mu (mu > 0): the first mode of a uniform elastic line
+ * fixed at its top with an end mass, mu = line mass / end mass. f(beta) = beta sin(beta) -
+ * mu cos(beta) rises from -mu at 0 to pi/2 at pi/2: Newton kept inside a shrinking bracket. */
+static double first_mode_beta(double mu)
 {
-    if (mu < 1e-3) /* the series of mu / beta^2; its next term, 11 mu^4 / 14175, is below 1e-15 */
-        return 1.0 + mu * (1.0 / 3.0 + mu * (1.0 / 45.0 - mu / 189.0));
-    /* f(beta) = beta sin(beta) - mu cos(beta) rises from -mu at 0 to pi/2 at pi/2: Newton kept
-     * inside a shrinking bracket */
     const double half_pi = 2.0 * atan(1.0);
+    if (!(mu < 1e17)) return half_pi; /* pi/2 - beta ~ pi / (2 mu), below the rounding of pi/2 */
     double lo = 0.0, hi = half_pi;
     double beta = mu < 1.0 ? sqrt(mu) : half_pi * mu / (1.0 + mu);
     for (int it = 0; it < 200 && hi - lo > 4e-16 * hi; ++it) {
@@ -69,14 +67,17 @@ static double first_mode_mass_ratio(double mu)
         beta = next;
         if (moved <= 1e-16 * beta) break;
     }
-    return mu / (beta * beta);
+    return beta;
 }
 
 double payload_effective_mass(const tether_params *p, double L0)
 {
-    const double w = p->line_density;
-    if (w == 0.0) return p->m;
-    return p->m * first_mode_mass_ratio(w * L0 / p->m);
+    const double line = p->line_density * L0, mu = line / p->m;
+    if (line == 0.0) return p->m;
+    if (mu < 1e-3) /* m mu / beta^2 as a series; its next term, 11 mu^4 / 14175, is below 1e-15 */
+        return p->m * (1.0 + mu * (1.0 / 3.0 + mu * (1.0 / 45.0 - mu / 189.0)));
+    const double beta = first_mode_beta(mu);
+    return line / (beta * beta);
 }
 
 static int slack_active(const tether_model *M)
