@@ -125,6 +125,21 @@ def test_balance_elongation_carries_half_the_line_weight(w):
     assert T0 == pytest.approx((M + w * L0 / 2) * G, rel=1e-9)
 
 
+@pytest.mark.parametrize("mu", [0.0, 1e-5, 0.1, 1.0, 100.0])
+def test_effective_mass_output_is_the_first_mode_mass(mu):
+    w = mu * M / L0
+    inst = H.cs(dict(LINEAR_UNDAMPED, line_density=w))
+    try:
+        got = inst.get("effective_mass")
+    finally:
+        inst.free()
+    expected = M if mu == 0.0 else w * L0 / first_mode_beta(mu) ** 2
+    assert got == pytest.approx(expected, rel=1e-13, abs=0.0)
+    assert got == pytest.approx(M + w * L0 / 3, rel=mu / 40 + 1e-15)    # Rayleigh's third, to first order
+    e = idn.Experiment(np.arange(3) * 1e-3, settings=dict(LINEAR_UNDAMPED, line_density=w))
+    assert idn.simulate(e, outputs=["effective_mass"])[0, 0] == got
+
+
 # ---- 3. the engine and the FMU agree ---------------------------------------------------------------
 def test_engine_equals_fmu_on_a_forced_payload_record_with_line_density():
     from test_identify_engine import FULL, TRUTH_FULL, run_fmu

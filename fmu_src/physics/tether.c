@@ -514,6 +514,7 @@ void tether_compute_outputs(const tether_model *M, double t, const double *y, te
     o->der_slip_strain = ydot[ST_SLIP];
     o->der_slip_capacity = ydot[ST_CAPACITY];
     o->balance_elongation = M->d.balance_elongation;
+    o->effective_mass = M->d.effective_mass;
     o->creep_total = s.eps_c;
     o->is_slack = slack_active(M) && !M->d.taut;
     o->mechanical_strain = s.eps_m;

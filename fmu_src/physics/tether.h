@@ -86,7 +86,7 @@ typedef struct {
     double der_displacement, der_velocity, der_load_elongation, der_hysteretic_force;
     double der_creep_strain_1, der_creep_strain_2, der_creep_strain_3, der_slip_strain;
     double der_slip_capacity;
-    double balance_elongation, creep_total;
+    double balance_elongation, creep_total, effective_mass;
     int is_slack;
     /* diagnostics */
     double mechanical_strain, raw_tension;
