@@ -309,6 +309,15 @@ def test_trace_line_density_reaches_the_fmu_and_the_engine(write_trace):
     assert T_eng == pytest.approx(T_exact, rel=1e-5), f"engine through experiment_from_trace: {T_eng} s"
 
 
+def test_payload_masses_of_a_trace(write_trace):
+    """The fit's data-based start takes the weight's and the inertia's mass from here."""
+    assert idn.payload_masses(_free_vibration_trace(write_trace, None)) == (M, M)
+    w = 1.0 * M / L0
+    m_w, m_eff = idn.payload_masses(_free_vibration_trace(write_trace, w, name="heavy"))
+    assert m_w == pytest.approx(M + w * L0 / 2, rel=1e-15)
+    assert m_eff == pytest.approx(w * L0 / first_mode_beta(1.0) ** 2, rel=1e-13)
+
+
 def test_fit_of_a_trace_with_line_density_recovers_the_stiffness(write_trace):
     """A record made with the line's mass is fitted with it: EA and c0 come back; with a massless
     line the period would need EA / 1.16 (mu = 0.5)."""

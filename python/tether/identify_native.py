@@ -251,6 +251,17 @@ def experiment_from_trace(trace, settings: Mapping[str, float] | None = None, we
                       periodic_samples=P)
 
 
+def payload_masses(trace) -> tuple[float, float]:
+    """(M_w, M_eff) of a payload trace: the mass whose weight M_w g the balance carries,
+    m + w L0 / 2, and the mass the payload's acceleration sees (the FMU's effective_mass, read from
+    the engine); both m for a massless line (docs/models.md, "The line's own mass")."""
+    m, w, L0 = float(trace.payload_mass_kg), float(trace.line_density_kg_m), float(trace.length_m)
+    if w == 0.0:
+        return m, m
+    e = Experiment(np.array([0.0, 1.0]), settings={"rig": 2, "m": m, "L0": L0, "line_density": w, "g": 0.0})
+    return m + 0.5 * w * L0, float(simulate(e, outputs=["effective_mass"])[0, 0])
+
+
 def simulate(exp: Experiment, params: Mapping[str, float] | None = None,
              outputs: Sequence[str] | None = None) -> np.ndarray:
     """The experiment's output at its samples (n,), or n x len(outputs) if outputs are given."""
