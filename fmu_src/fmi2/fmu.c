@@ -598,7 +598,7 @@ fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size
 }
 
 /* ---- FMU state, by value ------------------------------------------------------------------- */
-#define SNAPSHOT_VERSION 2u
+#define SNAPSHOT_VERSION 3u /* 3: the payload rig's carried and effective masses */
 /* the run states an instance is in when its state is taken (never instantiated, never fatal) */
 #define S_SAVED (S_INIT | S_EVENT | S_CONTINUOUS | S_STEP_COMPLETE | S_STEP_FAILED | S_TERMINATED | S_ERROR)
 
@@ -680,6 +680,11 @@ static int snapshot_check(const snapshot *s, char *msg, size_t len)
     if (d->taut != 0 && d->taut != 1) BAD("taut = %d is not 0 or 1", d->taut);
     if (d->warned_rising_limit != 0 && d->warned_rising_limit != 1) BAD("warned_rising_limit = %d is not 0 or 1", d->warned_rising_limit);
     FINITE(d->balance_elongation, "balance elongation");
+    FINITE(d->carried_mass, "carried mass");
+    FINITE(d->effective_mass, "effective mass");
+    if (s->fmu_state != S_INIT && M->p.rig == RIG_PAYLOAD && !(d->effective_mass > 0.0 && d->carried_mass > 0.0))
+        BAD("effective mass = %.17g kg, carried mass = %.17g kg: the payload rig needs both positive",
+            d->effective_mass, d->carried_mass);
     if (isnan(d->rising_limit) || isnan(d->compression_limit)) BAD("the elastic law's rising range is NaN");
     const kawabata_memory *k = &d->kawabata;
     if (k->n < 0 || k->n > KAWABATA_MAX_REVERSALS) BAD("Kawabata reversal count = %d, expected 0..%d", k->n, KAWABATA_MAX_REVERSALS);

@@ -17,6 +17,9 @@ typedef struct {
     double rtol;
     /* payload */
     double m, g, x0, v0;
+    /* payload rig: the tether line's own mass per length [kg/m], its share of the weight and of
+     * the inertia (tether.h: payload_carried_mass, payload_effective_mass) */
+    double line_density;
     /* elastic law: linear EA, or the cubic a1..a3 plus a power term pow_F |eps/pow_eps|^pow_n */
     double EA, a1, a2, a3;
     double pow_F, pow_eps, pow_n;

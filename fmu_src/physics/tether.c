@@ -40,6 +40,46 @@ static double input_load_rate(const tether_model *M, double t)
     return input_polynomial_rate(M->in.load_der, t - M->in.t_ref);
 }
 
+/* ---- the payload rig's line: its share of the weight and of the inertia ---------------------- */
+
+double payload_carried_mass(const tether_params *p, double L0)
+{
+    return p->m + 0.5 * p->line_density * L0;
+}
+
+/* beta in (0, pi/2) with beta tan(beta) = mu (mu > 0): the first mode of a uniform elastic line
+ * fixed at its top with an end mass, mu = line mass / end mass. f(beta) = beta sin(beta) -
+ * mu cos(beta) rises from -mu at 0 to pi/2 at pi/2: Newton kept inside a shrinking bracket. */
+static double first_mode_beta(double mu)
+{
+    const double half_pi = 2.0 * atan(1.0);
+    if (!(mu < 1e17)) return half_pi; /* pi/2 - beta ~ pi / (2 mu), below the rounding of pi/2 */
+    double lo = 0.0, hi = half_pi;
+    double beta = mu < 1.0 ? sqrt(mu) : half_pi * mu / (1.0 + mu);
+    for (int it = 0; it < 200 && hi - lo > 4e-16 * hi; ++it) {
+        const double s = sin(beta), c = cos(beta);
+        const double f = beta * s - mu * c;
+        if (f == 0.0) break;
+        if (f < 0.0) lo = beta; else hi = beta;
+        double next = beta - f / ((1.0 + mu) * s + beta * c);
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        const double moved = fabs(next - beta);
+        beta = next;
+        if (moved <= 1e-16 * beta) break;
+    }
+    return beta;
+}
+
+double payload_effective_mass(const tether_params *p, double L0)
+{
+    const double line = p->line_density * L0, mu = line / p->m;
+    if (line == 0.0) return p->m;
+    if (mu < 1e-3) /* m mu / beta^2 as a series; its next term, 11 mu^4 / 14175, is below 1e-15 */
+        return p->m * (1.0 + mu * (1.0 / 3.0 + mu * (1.0 / 45.0 - mu / 189.0)));
+    const double beta = first_mode_beta(mu);
+    return line / (beta * beta);
+}
+
 static int slack_active(const tether_model *M)
 {
     return M->p.slack && M->p.rig != RIG_LOAD;
@@ -202,6 +242,8 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (!(p->rtol >= 1e-14 && p->rtol <= 1e-2)) FAIL("rtol = %g: expected a relative tolerance in [1e-14, 1e-2]", p->rtol);
     if (!(M->in.L0 > 0.0) || !isfinite(M->in.L0)) FAIL("L0 = %g m: the natural length must be positive", M->in.L0);
     if (p->rig == RIG_PAYLOAD && !(p->m > 0.0)) FAIL("m = %g kg: the payload rig needs a positive mass", p->m);
+    if (!(p->line_density >= 0.0) || !isfinite(p->line_density))
+        FAIL("line_density = %g kg/m: expected the tether line's mass per length, finite and >= 0", p->line_density);
     if (!(p->g >= 0.0)) FAIL("g = %g m/s2: expected g >= 0", p->g);
     if (p->stiffness == STIFFNESS_LINEAR && p->hysteresis != HYSTERESIS_KAWABATA && !(p->EA > 0.0)) FAIL("EA = %g N: the linear law needs EA > 0", p->EA);
     if (p->stiffness == STIFFNESS_CUBIC && p->hysteresis != HYSTERESIS_KAWABATA && !(p->a1 > 0.0)) FAIL("a1 = %g N: the cubic law needs a1 > 0", p->a1);
@@ -271,17 +313,20 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
     kawabata_reset(&M->d.kawabata);
     iwan_reset(&M->d.iwan, 0.0);
     M->d.balance_elongation = 0.0;
+    M->d.carried_mass = M->d.effective_mass = 0.0;
     M->d.warned_rising_limit = 0;
     M->d.rising_limit = elastic_rising_limit(p);
     M->d.compression_limit = elastic_compression_limit(p);
     const double z0 = p->hysteresis == HYSTERESIS_BOUCWEN ? p->z0 : 0.0;
     double eps;
     if (p->rig == RIG_PAYLOAD) {
-        const double W = p->m * p->g - z0;
+        M->d.carried_mass = payload_carried_mass(p, M->in.L0);
+        M->d.effective_mass = payload_effective_mass(p, M->in.L0);
+        const double W = M->d.carried_mass * p->g - z0;
         if (static_strain_at(M, W, &eps) != 0) {
-            snprintf(msg, len, "m = %g kg, g = %g m/s2: the weight %g N exceeds the largest tension %g N the "
-                     "cubic law carries (at strain %g, where dF/deps reaches 0)", p->m, p->g, W,
-                     elastic_tension(p, M->d.rising_limit), M->d.rising_limit);
+            snprintf(msg, len, "m = %g kg, line_density = %g kg/m, g = %g m/s2: the weight %g N exceeds the largest "
+                     "tension %g N the cubic law carries (at strain %g, where dF/deps reaches 0)", p->m,
+                     p->line_density, p->g, W, elastic_tension(p, M->d.rising_limit), M->d.rising_limit);
             return -1;
         }
         M->d.balance_elongation = eps * M->in.L0;
@@ -334,7 +379,9 @@ void tether_derivatives(const tether_model *M, double t, const double *y, double
     memset(ydot, 0, sizeof(double) * TETHER_NUMBER_OF_STATES);
     if (p->rig == RIG_PAYLOAD) {
         ydot[ST_DISPLACEMENT] = s.udot;
-        ydot[ST_VELOCITY] = p->g + (input_force(M, t) - s.T) / p->m;
+        /* M_eff x'' = M_w g + f - T, written so that M_w = M_eff = m gives g + (f - T) / m exactly */
+        const double M_eff = M->d.effective_mass;
+        ydot[ST_VELOCITY] = p->g * (M->d.carried_mass / M_eff) + (input_force(M, t) - s.T) / M_eff;
     } else if (p->rig == RIG_LOAD) {
         ydot[ST_LOAD_ELONGATION] = s.udot;
     }
@@ -467,6 +514,7 @@ void tether_compute_outputs(const tether_model *M, double t, const double *y, te
     o->der_slip_strain = ydot[ST_SLIP];
     o->der_slip_capacity = ydot[ST_CAPACITY];
     o->balance_elongation = M->d.balance_elongation;
+    o->effective_mass = M->d.effective_mass;
     o->creep_total = s.eps_c;
     o->is_slack = slack_active(M) && !M->d.taut;
     o->mechanical_strain = s.eps_m;

@@ -11,8 +11,10 @@
  *
  * Rigs:
  *   element  u, u' are inputs; T is the output (a force element between two bodies)
- *   payload  m x'' = m g + f(t) - T, u = u_bal + x, u_bal the balance stretch of the elastic law
- *            under m g (a mass hanging on the tether)
+ *   payload  M_eff x'' = M_w g + f(t) - T, u = u_bal + x, u_bal the balance stretch of the elastic
+ *            law under M_w g (a mass hanging on the tether). Without line density w, M_eff = M_w = m;
+ *            with it, M_w = m + w L0 / 2 (the generalised force of the line's weight) and M_eff the
+ *            first-mode effective mass of the line with its end mass (payload_effective_mass)
  *   load     the applied tension T(t) >= 0 is the input; the test is slow, so inertia and damping
  *            play no part: the mechanical strain follows T = F(eps_m) + z quasi-statically.
  *            Without Bouc-Wen the static law is inverted on its branch and the strain relaxes to
@@ -61,6 +63,9 @@ typedef struct {
     kawabata_memory kawabata; /* reversal memory */
     iwan_memory iwan;         /* the Iwan elements' spring strains at the last reversal */
     double balance_elongation;/* u_bal, payload rig */
+    /* payload rig, computed once at initialisation (with L0 then): M_w, whose weight M_w g the
+     * balance carries, and M_eff, the mass the payload's acceleration sees (0 in the other rigs) */
+    double carried_mass, effective_mass;
     int warned_rising_limit;  /* the cubic was reported outside its rising range */
     /* the elastic law's rising range [compression_limit, rising_limit], computed once at
      * initialisation (with a power term it takes a search, and the load rig asks at every step) */
@@ -81,7 +86,7 @@ typedef struct {
     double der_displacement, der_velocity, der_load_elongation, der_hysteretic_force;
     double der_creep_strain_1, der_creep_strain_2, der_creep_strain_3, der_slip_strain;
     double der_slip_capacity;
-    double balance_elongation, creep_total;
+    double balance_elongation, creep_total, effective_mass;
     int is_slack;
     /* diagnostics */
     double mechanical_strain, raw_tension;
@@ -100,6 +105,16 @@ typedef struct {
 /* Check the parameters and inputs; on failure write a message that names the variable, its value
  * and what was expected, and return -1. */
 int tether_check(const tether_model *M, char *msg, size_t len);
+
+/* The payload rig's masses with the tether line's density w = p->line_density over the natural
+ * length L0 (docs/models.md, "The line's own mass"):
+ *   payload_carried_mass    M_w = m + w L0 / 2: the balance carries the weight M_w g (the
+ *                           generalised force of the line's weight on the payload's coordinate)
+ *   payload_effective_mass  M_eff = w L0 / beta^2, beta tan(beta) = w L0 / m: the first mode of a
+ *                           uniform elastic line fixed at its top with the end mass m (m exactly at
+ *                           w = 0; m + w L0 / 3 to first order in w L0 / m) */
+double payload_carried_mass(const tether_params *p, double L0);
+double payload_effective_mass(const tether_params *p, double L0);
 
 /* Compute the balance stretch, the initial states y and the initial discrete state. */
 int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t len);

@@ -448,7 +448,7 @@ def _iwan_params(slip: Sequence[float], k: np.ndarray) -> dict:
 def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
     """Equation-error estimates for one payload trace."""
     t = np.asarray(trace.time, float)
-    m = float(trace.payload_mass_kg)
+    m_w, m = idn.payload_masses(trace)    # the weight's mass and the inertia's (line density)
     g = float(trace.gravity_m_s2)
     L0 = float(trace.length_m)
     f_dom = _dominant_frequency(t, np.asarray(trace.measured, float))
@@ -473,7 +473,7 @@ def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
     k_lin = float(coef[1]) if coef[1] > 0 else m * (2 * math.pi * f_dom) ** 2
     c_lin = float(coef[0])
     if spec.slack and g > 0:
-        slack_free = _taut_for_sure(K.x, m, g, k_lin)
+        slack_free = _taut_for_sure(K.x, m_w, g, k_lin)
         if slack_free[keep].sum() > 20:
             keep &= slack_free
     est: dict = {"_k_lin": k_lin, "_c_lin": c_lin, "_amp": amp, "_omega": math.sqrt(max(k_lin, 1e-300) / m)}
@@ -509,7 +509,7 @@ def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
         # the bank's spring strains along the measured strain path from the balance, where its
         # springs are unloaded (held at zero strain where a slack tether is shortened): the element
         # stiffnesses enter linearly, >= 0
-        eps_b = m * g / (k_lin * L0) if k_lin > 0 and g > 0 else 0.0
+        eps_b = m_w * g / (k_lin * L0) if k_lin > 0 and g > 0 else 0.0
         d = K.x / L0
         if spec.slack:
             d = np.maximum(d + eps_b, 0.0) - eps_b
@@ -531,7 +531,7 @@ def _payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
         c_ref = abs(c_lin) or 2 * 0.01 * math.sqrt(k_lin * m)
         est["c1"] = c[1] if c[1] > 0 else 0.05 * c_ref / amp
         est["c2"] = c[2] if c[2] > 0 else 0.05 * c_ref / amp ** 2
-    weight = m * g
+    weight = m_w * g
     if spec.hysteresis == "kawabata":
         est["_k_taylor"] = k
     elif cubic:
@@ -830,7 +830,7 @@ def initial_estimate(traces: Sequence[Trace], spec, fixed: Mapping[str, float] |
             # payload only: the virgin curve's tangent at the balance gives the scale of F_ref
             k_lin = float(np.mean([p["_k_lin"] for p in per]))
             tr = payload[0]
-            L0, w = float(tr.length_m), float(tr.payload_mass_kg) * float(tr.gravity_m_s2)
+            L0, w = float(tr.length_m), idn.payload_masses(tr)[0] * float(tr.gravity_m_s2)
             LT = est.get("kaw_LT", defaults["kaw_LT"])
             pexp = 2.0 / LT - 1.0
             if w > 0 and k_lin > 0:
@@ -858,7 +858,8 @@ def _experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str, floa
     if sp.rig == "payload":
         settings.update(m=float(trace.payload_mass_kg), g=float(trace.gravity_m_s2),
                         x0=0.0 if P else float(trace.initial_displacement_m),
-                        v0=0.0 if P else float(trace.initial_velocity_m_s))
+                        v0=0.0 if P else float(trace.initial_velocity_m_s),
+                        line_density=float(trace.line_density_kg_m))
         # nuisance values given (fixed, or held between stages) win over the trace's metadata
         settings.update({k: float(v) for k, v in settings_extra.items() if k in NZ.NUISANCE})
     t = np.asarray(trace.time, float)

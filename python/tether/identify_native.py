@@ -235,13 +235,13 @@ class Experiment:
 
 def experiment_from_trace(trace, settings: Mapping[str, float] | None = None, weight: float = 1.0) -> Experiment:
     """An Experiment for a checked trace (tether.traces.Trace): rig, input, measured column, L0,
-    payload mass, gravity, initial state and periodic_samples from the trace; `settings` adds the
+    payload mass, line density, gravity, initial state and periodic_samples from the trace; `settings` adds the
     model's switches and fixed parameters (e.g. {"stiffness": 2, "damping": 2, "hysteresis": 3})."""
     payload = trace.experiment in ("free_vibration", "forced")
     st: dict[str, float] = {"rig": 2 if payload else 3, "L0": float(trace.length_m), "g": float(trace.gravity_m_s2)}
     if payload:
         st.update(m=float(trace.payload_mass_kg), x0=float(trace.initial_displacement_m),
-                  v0=float(trace.initial_velocity_m_s))
+                  v0=float(trace.initial_velocity_m_s), line_density=float(trace.line_density_kg_m))
     st.update(settings or {})
     kind = {None: INPUT_NONE, "force": INPUT_FORCE, "load": INPUT_LOAD}[trace.input_column]
     P = int(trace.periodic_samples or 0)
@@ -256,6 +256,17 @@ def experiment_from_trace(trace, settings: Mapping[str, float] | None = None, we
     return Experiment(np.asarray(trace.time, float), settings=st, input_kind=kind, input=inp, input_der=der,
                       output=trace.measured_column, measured=np.asarray(trace.measured, float), weight=weight,
                       periodic_samples=P)
+
+
+def payload_masses(trace) -> tuple[float, float]:
+    """(M_w, M_eff) of a payload trace: the mass whose weight M_w g the balance carries,
+    m + w L0 / 2, and the mass the payload's acceleration sees (the FMU's effective_mass, read from
+    the engine); both m for a massless line (docs/models.md, "The line's own mass")."""
+    m, w, L0 = float(trace.payload_mass_kg), float(trace.line_density_kg_m), float(trace.length_m)
+    if w == 0.0:
+        return m, m
+    e = Experiment(np.array([0.0, 1.0]), settings={"rig": 2, "m": m, "L0": L0, "line_density": w, "g": 0.0})
+    return m + 0.5 * w * L0, float(simulate(e, outputs=["effective_mass"])[0, 0])
 
 
 def simulate(exp: Experiment, params: Mapping[str, float] | None = None,

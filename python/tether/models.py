@@ -69,7 +69,7 @@ LAWS = ("cubic", "boucwen", "kawabata", "iwan")
 #: the structural switches: set by the model string, never by a parameter file
 SWITCHES = ("rig", "stiffness", "damping", "hysteresis", "creep", "slack")
 #: names a trace sets from its metadata (they win over a parameter file)
-TRACE_PARAMETERS = ("L0", "m", "g", "x0", "v0")
+TRACE_PARAMETERS = ("L0", "m", "g", "x0", "v0", "line_density")
 
 EXPERIMENT_RIG = {"free_vibration": "payload", "forced": "payload", "load_unload": "load", "creep": "load"}
 

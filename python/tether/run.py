@@ -350,8 +350,8 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
     """Simulate ``trace`` with ``model`` and ``params`` (FMU start values for the rest).
 
     ``params`` may name any FMU parameter (see :func:`tether.models.check_parameters`); the
-    trace's own values for L0, m, g, x0, v0 win. ``nuisance`` (tether.nuisance, e.g. a fit's
-    FitResult.nuisance for this trace): m, x0, v0 over the trace's, and the measurement applied
+    trace's own values for L0, m, g, x0, v0, line_density win. ``nuisance`` (tether.nuisance, e.g. a
+    fit's FitResult.nuisance for this trace): m, x0, v0 over the trace's, and the measurement applied
     as the engine applies it (input_gain, offset_input on the input, offset_measured on the
     prediction). Raises SimulationError if the FMU fails and FMUError if it is missing.
     """
@@ -379,7 +379,8 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
     if spec.rig == "payload":
         trace_values.update(m=float(trace.payload_mass_kg), g=float(trace.gravity_m_s2),
                             x0=0.0 if periodic else float(trace.initial_displacement_m),
-                            v0=0.0 if periodic else float(trace.initial_velocity_m_s))
+                            v0=0.0 if periodic else float(trace.initial_velocity_m_s),
+                            line_density=float(trace.line_density_kg_m))
         trace_values.update({k: float(nuisance[k]) for k in ("m", "x0", "v0") if k in nuisance})
     values.update(trace_values)
 

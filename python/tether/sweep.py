@@ -36,7 +36,7 @@ from .traces import Trace
 OUTPUTS = ("max_tension", "min_tension", "peak_MEASURED", "rms_MEASURED", "slack_time", "final_elongation", "rmse")
 #: trace attribute that a varied trace parameter replaces
 _TRACE_FIELDS = {"L0": "length_m", "m": "payload_mass_kg", "g": "gravity_m_s2", "x0": "initial_displacement_m",
-                 "v0": "initial_velocity_m_s"}
+                 "v0": "initial_velocity_m_s", "line_density": "line_density_kg_m"}
 
 
 class SweepError(ValueError):
@@ -91,7 +91,7 @@ def check_varied_names(names: Sequence[str], trace: Trace, spec: ModelSpec, wher
     scale = scale_name(trace)
     for n in names:
         if n in TRACE_PARAMETERS or n == scale:
-            if n in ("m", "x0", "v0") and trace.rig != "payload":
+            if n in ("m", "x0", "v0", "line_density") and trace.rig != "payload":
                 raise SweepError(f"{where} {n}: '{n}' belongs to the payload rig; {trace.name} is a "
                                  f"{trace.experiment} test (load rig)")
             continue
@@ -99,7 +99,7 @@ def check_varied_names(names: Sequence[str], trace: Trace, spec: ModelSpec, wher
             raise SweepError(f"{where} {n}: {trace.name} has "
                              + (f"the input '{trace.input_column}': vary {scale}" if scale else "no input column"))
         if n not in desc.parameters:
-            raise SweepError(f"{where} {n}: not a parameter of the FMU nor of the trace (L0, m, g, x0, v0"
+            raise SweepError(f"{where} {n}: not a parameter of the FMU nor of the trace (L0, m, g, x0, v0, line_density"
                              f"{', ' + scale if scale else ''})")
         if n not in spec.parameters:
             raise SweepError(f"{where} {n}: not used by the model '{spec.canonical}'; its parameters are "

@@ -16,6 +16,7 @@ Defaults applied here (from the format):
 * ``gravity_m_s2``: 9.81
 * ``initial_displacement_m``: the first ``displacement`` sample for ``free_vibration``, 0 for
   ``forced``; ``initial_velocity_m_s``: 0
+* ``tether.line_density_kg_m``: 0 (a massless line; the payload rig's ``line_density``)
 * ``periodic_samples`` absent: the record starts from the initial state (not periodic)
 
 Extra CSV columns and unknown JSON keys are ignored.
@@ -89,6 +90,7 @@ class Trace:
     mass_uncertainty_rel: float | None = None
     # False: the force column carries an unknown gain (docs/nuisance.md)
     force_gain_known: bool = True
+    line_density_kg_m: float = 0.0  # tether.line_density_kg_m: the FMU's line_density (payload rig)
 
     @property
     def name(self) -> str:
@@ -111,18 +113,21 @@ class Trace:
                     displacement=None, elongation=None, payload_mass_kg: float | None = None,
                     gravity_m_s2: float | None = None, initial_displacement_m: float | None = None,
                     initial_velocity_m_s: float | None = None, periodic_samples: int | None = None,
-                    name: str = "trace", description: str = "", require_measured: bool = True,
+                    line_density_kg_m: float | None = None, name: str = "trace", description: str = "", require_measured: bool = True,
                     extra: dict[str, Any] | None = None) -> "Trace":
         """A trace from arrays in memory, checked as a file would be (keys as in NAME.json).
 
         ``Trace.from_arrays(t, experiment="forced", length_m=1.0, payload_mass_kg=2.0, force=u,
         displacement=y)``; the input column the experiment needs (``force`` or ``load``) is
         required, the measured one (``displacement`` or ``elongation``) unless ``require_measured``
-        is False. ``extra``: other keys a NAME.json may hold (e.g. ``input_interpolation``). Errors
+        is False. ``line_density_kg_m`` is the JSON's ``tether.line_density_kg_m``. ``extra``: other keys a NAME.json may hold (e.g. ``input_interpolation``). Errors
         name ``name``, the argument and the first bad index.
         """
         meta: dict[str, Any] = dict(extra or {})
         meta.update({"format": FORMAT, "experiment": experiment, "tether": {"length_m": length_m}})
+        if line_density_kg_m is not None:
+            meta["tether"]["line_density_kg_m"] = (line_density_kg_m.item() if hasattr(line_density_kg_m, "item")
+                                                   else line_density_kg_m)
         for key, value in (("payload_mass_kg", payload_mass_kg), ("gravity_m_s2", gravity_m_s2),
                            ("initial_displacement_m", initial_displacement_m),
                            ("initial_velocity_m_s", initial_velocity_m_s), ("periodic_samples", periodic_samples)):
@@ -231,7 +236,8 @@ def _make_trace(stem: Path, csv_path: Path, json_path: Path, meta: dict, columns
         periodic_samples=P, time=time, input_column=input_col, input=inp,
         measured_column=measured_col, measured=measured,
         description=str(meta.get("description", "")), meta=meta,
-        mass_uncertainty_rel=meta.get("mass_uncertainty_rel"), force_gain_known=meta.get("force_gain_known", True))
+        mass_uncertainty_rel=meta.get("mass_uncertainty_rel"), force_gain_known=meta.get("force_gain_known", True),
+        line_density_kg_m=float(meta["tether"].get("line_density_kg_m", 0.0)))
 
 
 def _trace_from_columns(where: Path, meta: dict, given: dict, *, name: str, require_measured: bool) -> Trace:
@@ -380,6 +386,9 @@ def _check_meta(raw: dict, path: Path) -> dict:
         raise TraceError(f"{path}: key 'tether.length_m' is missing; expected the natural length in metres (> 0)", path)
     tether = dict(tether)
     tether["length_m"] = _number(tether, "length_m", "tether.length_m", path, positive=True)
+    if "line_density_kg_m" in tether:
+        tether["line_density_kg_m"] = _number(tether, "line_density_kg_m", "tether.line_density_kg_m", path,
+                                              nonnegative=True)
     meta["tether"] = tether
 
     if exp in PAYLOAD_EXPERIMENTS:

@@ -13,8 +13,8 @@ from LO to HI; the first varies slowest), or with --samples N parameter sets dra
 --params (the P.json `tether fit --out` writes: a multivariate normal of its values, standard errors
 and correlations, in the scale the fit used, kept inside the parameters' bounds; --seed).
 
-Varied names: the FMU's parameters, the trace's own L0, m, g, x0, v0 (a varied one wins over the
-trace's), and force_scale or load_scale, a factor on the trace's input.
+Varied names: the FMU's parameters, the trace's own L0, m, g, x0, v0, line_density (a varied one
+wins over the trace's), and force_scale or load_scale, a factor on the trace's input.
 
 OUT.csv gets one row per run: run, the varied values, then max_tension, min_tension,
 peak_displacement (or peak_elongation; largest magnitude), rms_displacement (or rms_elongation),
