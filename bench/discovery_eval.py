@@ -58,8 +58,8 @@ def _one(job):
     from tether import discover as D
     from tether.traces import read_trace
 
-    D.ENGINE_OPTIONS["n_threads"] = 1
-    D.PARALLEL_FITS = 1              # two traces run side by side already
+    D.fitting.ENGINE_OPTIONS["n_threads"] = 1
+    D.fitting.PARALLEL_FITS = 1      # two traces run side by side already
     kw = dict(kw)
     family = kw.pop("_family", "independent")
     tr = he.generate(kw.pop("experiment"), kw.pop("effects"), kw.pop("seed"), **kw)
@@ -92,8 +92,8 @@ def _one_file(name, stem: Path, dest: Path) -> dict:
     from tether import discover as D
     from tether.traces import read_trace
 
-    D.ENGINE_OPTIONS["n_threads"] = 1
-    D.PARALLEL_FITS = 1
+    D.fitting.ENGINE_OPTIONS["n_threads"] = 1
+    D.fitting.PARALLEL_FITS = 1
     hidden = json.loads(stem.with_suffix(".json").read_text())["hidden"]
     trace = read_trace(stem)
     base = {"name": name, "experiment": trace.experiment, "hidden": sorted(hidden["effects"]),

@@ -18,6 +18,8 @@ import pytest
 
 import hidden_effects as he
 from tether import discover as D
+from tether import models
+from tether.discover import document, fitting, judge, refine, rival, samples, scales, search, starts
 from tether.traces import read_trace
 
 REPO = Path(__file__).resolve().parents[1]
@@ -46,8 +48,8 @@ def _strict(token):
 def _record_and_part(stem):
     """A record read back, its noise estimate and scales, and the first part held-out tests fit."""
     tr = read_trace(stem)
-    part = D._truncated(tr, D.FIT_PART)
-    return tr, D.estimate_noise(tr).sigma, D._scales(tr), part, len(part.time), D._scales(part)
+    part = samples._truncated(tr, judge.FIT_PART)
+    return tr, D.estimate_noise(tr).sigma, scales._scales(tr), part, len(part.time), scales._scales(part)
 
 
 def _rerun_rms(run_cli, tmp_path, stem, params, measured) -> float:
@@ -85,17 +87,17 @@ def test_noise_estimate_recovers_the_drawn_sigma(sigma, jitter):
 # the verdicts: what earns its parameters
 def test_verdict_accepts_a_gap_closed_to_the_noise_and_refuses_a_bic_rise():
     s = 1.0
-    ok, why = D.full_data_verdict(s, rms_before=5.0, rms_after=1.02, bic_change=-500.0)
+    ok, why = judge.full_data_verdict(s, rms_before=5.0, rms_after=1.02, bic_change=-500.0)
     assert ok, why
-    ok, why = D.full_data_verdict(s, rms_before=5.0, rms_after=1.02, bic_change=+3.0)
+    ok, why = judge.full_data_verdict(s, rms_before=5.0, rms_after=1.02, bic_change=+3.0)
     assert not ok and "BIC" in why
     # a gap that barely moves does not earn anything, however low the BIC
-    ok, why = D.full_data_verdict(s, rms_before=5.0, rms_after=4.5, bic_change=-50.0)
+    ok, why = judge.full_data_verdict(s, rms_before=5.0, rms_after=4.5, bic_change=-50.0)
     assert not ok and "gap" in why
     # within the noise before: nothing to gain
-    ok, _ = D.full_data_verdict(s, rms_before=1.0, rms_after=0.99, bic_change=-1.0)
+    ok, _ = judge.full_data_verdict(s, rms_before=1.0, rms_after=0.99, bic_change=-1.0)
     assert not ok
-    assert D._gap(math.sqrt(2.0), 1.0) == pytest.approx(1.0)
+    assert judge._gap(math.sqrt(2.0), 1.0) == pytest.approx(1.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -198,17 +200,17 @@ def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, c
     lin = D.fit_model(tr, parse_model("linear", "forced"), (), [None], sc)
     iwan = D.fit_model(tr, parse_model("linear+iwan", "forced"), ("hysteresis",), [None], sc)
     bw_spec = parse_model("linear+boucwen", "forced")
-    bw = D.fit_model(tr, bw_spec, ("hysteresis",), D.candidate_starts(lin, bw_spec, sc), sc)
+    bw = D.fit_model(tr, bw_spec, ("hysteresis",), starts.candidate_starts(lin, bw_spec, sc), sc)
     spec = parse_model("linear+boucwen+slack", "forced")
     cur = D.fit_model(tr, spec, ("hysteresis", "slack"), [dict(bw.params)], sc)
     cur_part = D.fit_model(part, spec, cur.effects, [cur.params], sc_part)
-    held = D._heldout(tr, spec, cur_part.params, first)
+    held = fitting._heldout(tr, spec, cur_part.params, first)
 
     def fit(t, sp, eff, starts, baseline_rms=None, cap_factor=1.0):
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, baseline_rms=baseline_rms)
 
     lines = []
-    new, new_held, rec = D.rival_law(tr, part, first, cur, held, sigma, fit, {"iwan": dict(iwan.params)},
+    new, new_held, rec = rival.rival_law(tr, part, first, cur, held, sigma, fit, {"iwan": dict(iwan.params)},
                                      ["hysteresis", "slack"], lines.append)
     with capsys.disabled():
         print(f"\nFIGURE rival law, forced Iwan + slack: Bouc-Wen + slack {cur.rms / sigma:.2f} x noise "
@@ -217,7 +219,7 @@ def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, c
     assert new.spec.hysteresis == "iwan" and new.spec.slack
     assert new.rms < 0.6 * cur.rms and new_held < 0.7 * held
     # a model with no effect named after its hysteresis is left alone
-    same, _, none = D.rival_law(tr, part, first, cur, held, sigma, fit, {"iwan": dict(iwan.params)},
+    same, _, none = rival.rival_law(tr, part, first, cur, held, sigma, fit, {"iwan": dict(iwan.params)},
                                 ["slack", "hysteresis"], lines.append)
     assert same is cur and none is None
 
@@ -243,19 +245,19 @@ def test_a_power_law_stiffness_is_followed_by_the_power_term_and_brings_back_the
     bw = D.fit_model(tr, spec, effects, [None], sc)
     cur = D.fit_model(tr, spec, effects, [bw.params], sc, extra=shape)
     iwan = D.fit_model(tr, parse_model("cubic+iwan", "load_unload"), effects, [None], sc)
-    held = D._heldout(tr, spec, D.fit_model(part, spec, effects, [cur.params], sc_part, extra=shape).params, first)
+    held = fitting._heldout(tr, spec, D.fit_model(part, spec, effects, [cur.params], sc_part, extra=shape).params, first)
 
     def fit(t, sp, eff, starts, extra=(), own_thread=False, baseline_rms=None, cap_factor=1.0):
         extra = tuple(extra) + tuple(k for k in shape if k in sp.parameters and k not in extra)
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra, baseline_rms=baseline_rms)
 
     lines = []
-    powered, powered_held, refs = D.refine_shapes(tr, part, first, cur, held, sigma, fit, sc, lines.append,
+    powered, powered_held, refs = refine.refine_shapes(tr, part, first, cur, held, sigma, fit, sc, lines.append,
                                                   skip={"hysteresis"})
     assert [r.parameters for r in refs] == [("pow_F", "pow_n")], lines
     assert refs[0].accepted, lines
     assert powered.rms < cur.rms and powered_held <= held
-    new, new_held, rec = D.rival_law(tr, part, first, powered, powered_held, sigma, fit, {"iwan": dict(iwan.params)},
+    new, new_held, rec = rival.rival_law(tr, part, first, powered, powered_held, sigma, fit, {"iwan": dict(iwan.params)},
                                      list(effects), lines.append, elastic_reshaped=True)
     noise = hidden["noise_sigma_m"]
     with capsys.disabled():
@@ -268,7 +270,7 @@ def test_a_power_law_stiffness_is_followed_by_the_power_term_and_brings_back_the
     assert new.rms <= 1.5 * noise and new_held <= 1.5 * noise
     assert new.params["pow_F"] > 0 and abs(new.params["pow_n"] - hidden["params"]["stiff_p"]) < 0.25
     # without the power term kept, a hysteresis named last is left alone
-    same, _, none = D.rival_law(tr, part, first, cur, held, sigma, fit, {"iwan": dict(iwan.params)}, list(effects),
+    same, _, none = rival.rival_law(tr, part, first, cur, held, sigma, fit, {"iwan": dict(iwan.params)}, list(effects),
                                 lines.append)
     assert same is cur and none is None
 
@@ -298,15 +300,15 @@ def test_idle_iwan_elements_restart_where_the_fit_left_them(tmp_path):
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra)
 
     lines = []
-    new, held, rec = D.restart_idle_elements(tr, part, first, idle, float("inf"), sigma, fit, lines.append)
+    new, held, rec = rival.restart_idle_elements(tr, part, first, idle, float("inf"), sigma, fit, lines.append)
     assert rec is not None and rec.accepted and rec.restart, lines
     assert new.rms <= 1.05 * ref.rms, (new.rms / sigma, ref.rms / sigma)
-    live = [n for n in IWAN_K if new.params[n] >= D.IWAN_IDLE_SHARE * k.sum()]
+    live = [n for n in IWAN_K if new.params[n] >= rival.IWAN_IDLE_SHARE * k.sum()]
     assert len(live) >= 5, new.params
     assert math.isfinite(held)
     bw_spec = parse_model("linear+boucwen", "free_vibration")
     bw = D.fit_model(tr, bw_spec, ("hysteresis",), [None], sc)
-    same, _, none = D.restart_idle_elements(tr, part, first, bw, float("inf"), sigma, fit, lines.append)
+    same, _, none = rival.restart_idle_elements(tr, part, first, bw, float("inf"), sigma, fit, lines.append)
     assert same is bw and none is None
 
 
@@ -319,10 +321,10 @@ def test_idle_elements_move_into_the_widest_gaps_of_the_slip_strains():
 
     eps = np.array([1e-4, 1e-3, 2e-4, 2e-3, 3e-4, 4e-3, 8e-3, 9e-3])
     idle = np.array([True, False, True, False, True, False, False, False])
-    moved = D.idle_slip_strains_moved(eps, idle)
+    moved = rival.idle_slip_strains_moved(eps, idle)
     assert sorted(moved) == [IWAN_EPS[0], IWAN_EPS[2], IWAN_EPS[4]]
     assert [moved[IWAN_EPS[i]] for i in (0, 2, 4)] == pytest.approx([3e-3, 5e-3, 6e-3], rel=1e-12)
-    assert D.idle_slip_strains_moved(eps, np.zeros(8, bool)) == {}
+    assert rival.idle_slip_strains_moved(eps, np.zeros(8, bool)) == {}
 
 
 def test_idle_iwan_elements_below_the_live_ones_move_into_their_gaps(tmp_path):
@@ -342,7 +344,7 @@ def test_idle_iwan_elements_below_the_live_ones_move_into_their_gaps(tmp_path):
     est = D.fit_model(tr, spec, ("hysteresis", "slack"), [None], sc)
     k = np.array([est.params[n] for n in IWAN_K])
     eps = np.array([est.params[n] for n in IWAN_EPS])
-    idle = k < D.IWAN_IDLE_SHARE * k.sum()
+    idle = k < rival.IWAN_IDLE_SHARE * k.sum()
     assert idle.sum() >= 3 and eps[idle].max() < eps[~idle].max(), (k, eps)
     assert est.rms > 3.0 * sigma, est.rms / sigma
 
@@ -350,11 +352,11 @@ def test_idle_iwan_elements_below_the_live_ones_move_into_their_gaps(tmp_path):
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra)
 
     lines = []
-    new, held, rec = D.restart_idle_elements(tr, part, first, est, float("inf"), sigma, fit, lines.append)
+    new, held, rec = rival.restart_idle_elements(tr, part, first, est, float("inf"), sigma, fit, lines.append)
     assert rec is not None and rec.accepted and "moved into the widest gaps" in rec.verdict, lines
     assert new.rms < 1.5 * sigma, new.rms / sigma
     assert math.isfinite(held)
-    k2 = np.where(idle, D.IWAN_RESTART_SHARE * k.sum(), k)
+    k2 = np.where(idle, rival.IWAN_RESTART_SHARE * k.sum(), k)
     k2 *= k.sum() / k2.sum()
     in_place = D.fit_model(tr, spec, ("hysteresis", "slack"), [{**est.params, **dict(zip(IWAN_K, map(float, k2)))}],
                            sc)
@@ -379,19 +381,19 @@ def test_a_finer_iwan_bank_follows_friction_spread_over_more_elements(tmp_path):
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra)
 
     est = D.fit_model(tr, spec, ("hysteresis",), [None], sc)
-    held = D._heldout(tr, spec, fit(part, spec, est.effects, [est.params]).params, first)
-    eight, held8, _ = D.restart_idle_elements(tr, part, first, est, held, sigma, fit, lambda s: None)
+    held = fitting._heldout(tr, spec, fit(part, spec, est.effects, [est.params]).params, first)
+    eight, held8, _ = rival.restart_idle_elements(tr, part, first, est, held, sigma, fit, lambda s: None)
     assert sum(n in eight.free for n in IWAN_K) == 8
     assert eight.rms > 1.3 * sigma, eight.rms / sigma
     lines = []
-    new, new_held, rec = D.finer_bank(tr, part, first, eight, held8, sigma, fit, lines.append)
+    new, new_held, rec = rival.finer_bank(tr, part, first, eight, held8, sigma, fit, lines.append)
     assert rec is not None and rec.accepted and rec.finer, lines
     assert all(n in new.free for n in IWAN_K + IWAN_EPS)
     assert new.rms < 1.1 * sigma, new.rms / sigma
-    live = [n for n in IWAN_K if new.params[n] >= D.IWAN_IDLE_SHARE * sum(new.params[k] for k in IWAN_K)]
+    live = [n for n in IWAN_K if new.params[n] >= rival.IWAN_IDLE_SHARE * sum(new.params[k] for k in IWAN_K)]
     assert len(live) > 8, new.params
     # (judged against half the noise, so that it is not left alone for being within the noise)
-    same, _, none = D.finer_bank(tr, part, first, new, new_held, 0.5 * sigma, fit, lines.append)
+    same, _, none = rival.finer_bank(tr, part, first, new, new_held, 0.5 * sigma, fit, lines.append)
     assert same is new and none is None
 
 
@@ -433,11 +435,11 @@ def test_a_slack_fit_that_never_goes_slack_is_kept_as_a_refit_of_the_model(tmp_p
     cur = model_fit(tr, lin, {**truth, "EA": 1.03 * truth["EA"]})
     cand = model_fit(tr, with_slack, dict(truth))
     assert cand.rms < 2.0 * sigma < cur.rms
-    refit = D._refit_without_slack(tr, cur, [slack_result(cand)], sigma)
+    refit = search._refit_without_slack(tr, cur, [slack_result(cand)], sigma)
     assert refit is not None and refit.spec == cur.spec and not refit.spec.slack
     assert refit.params["EA"] == truth["EA"] and refit.rms == pytest.approx(cand.rms, rel=1e-6)
     # no better than the current model: nothing
-    assert D._refit_without_slack(tr, cand, [slack_result(model_fit(tr, with_slack, cur.params))], sigma) is None
+    assert search._refit_without_slack(tr, cand, [slack_result(model_fit(tr, with_slack, cur.params))], sigma) is None
     # a tether that goes slack: the slack fit is another model
     stem2, gen2 = _write(tmp_path, "fv_slack", "free_vibration", {"slack"}, 5, noise=1e-5, rate=200.0,
                          duration_s=5.0)
@@ -447,7 +449,7 @@ def test_a_slack_fit_that_never_goes_slack_is_kept_as_a_refit_of_the_model(tmp_p
     cur2 = model_fit(tr2, lin, {**truth2, "EA": 1.03 * truth2["EA"]})
     cand2 = model_fit(tr2, with_slack, dict(truth2))
     assert cand2.rms < cur2.rms
-    assert D._refit_without_slack(tr2, cur2, [slack_result(cand2)], sigma2) is None
+    assert search._refit_without_slack(tr2, cur2, [slack_result(cand2)], sigma2) is None
 
 
 def test_a_damping_the_polynomial_follows_in_part_is_named_with_the_table(tmp_path, run_cli):
@@ -510,7 +512,7 @@ def test_slack_is_credited_only_where_it_acts(tmp_path, effects, acts):
     with_slack = parse_model("linear+slack").for_experiment(trace.experiment)
     fm = D.ModelFit(spec=with_slack, effects=("slack",), params=params, free=["EA", "c0"], rms=1e-4,
                     predicted=D.predict(trace, with_slack, params))
-    ok, verdict = D._slack_acts(trace, parse_model("linear"), fm, 1e-4, "earns")
+    ok, verdict = judge._slack_acts(trace, parse_model("linear"), fm, 1e-4, "earns")
     print(f"FIGURE slack {'released above the slack point' if acts else 'never slack'}: {ok}, {verdict}")
     assert ok is acts
     assert verdict == "earns" if acts else "slack never acts" in verdict
@@ -525,8 +527,8 @@ def test_a_part_fit_holds_the_table_knots_beyond_its_reach():
         measured = 0.05 * np.sin(np.linspace(0.0, 20.0, 500))
 
     knots = tuple(f"c_table_{j}" for j in range(1, 7))
-    assert D._knots_unseen(_Part, knots + ("bw_n",), [{"c_table_dx": 0.02}]) == knots[2:]
-    assert D._knots_unseen(_Part, ("bw_n",), [{"c_table_dx": 0.02}]) == ()
+    assert refine._knots_unseen(_Part, knots + ("bw_n",), [{"c_table_dx": 0.02}]) == knots[2:]
+    assert refine._knots_unseen(_Part, ("bw_n",), [{"c_table_dx": 0.02}]) == ()
 
 
 def test_bundled_trace_two_effects_json_report_and_rerun(tmp_path, run_cli):
@@ -621,9 +623,12 @@ def test_a_step_cut_short_by_the_budget_is_not_taken(tmp_path, monkeypatch):
 
     stem, _ = _write(tmp_path, "t", "free_vibration", {"nonlinear_stiffness"}, 5, noise=1e-4, rate=100.0)
     clock = {"offset": 0.0}
-    monkeypatch.setattr(D, "time", types.SimpleNamespace(perf_counter=lambda: real_time.perf_counter() + clock["offset"],
-                                                         process_time=real_time.process_time))
-    original = D.fit_model
+    shifted = types.SimpleNamespace(perf_counter=lambda: real_time.perf_counter() + clock["offset"],
+                                    process_time=real_time.process_time)
+    # the clocks of the search (its budget) and of the fits (their deadline), where they are read
+    monkeypatch.setattr(search, "time", shifted)
+    monkeypatch.setattr(fitting, "time", shifted)
+    original = search.fit_model
 
     def fit_model(trace, spec, effects, *a, **kw):
         r = original(trace, spec, effects, *a, **kw)
@@ -631,13 +636,13 @@ def test_a_step_cut_short_by_the_budget_is_not_taken(tmp_path, monkeypatch):
             clock["offset"] += 1e4
         return r
 
-    monkeypatch.setattr(D, "fit_model", fit_model)
+    monkeypatch.setattr(search, "fit_model", fit_model)
     d = D.discover(read_trace(stem), budget=600.0)
     assert d.added_effects == [] and d.final.model == "linear"
     assert "while the candidates of step 1" in d.stop_reason
     assert d.steps[0].candidates and all(not c.accepted and "time budget" in c.verdict for c in d.steps[0].candidates)
     # the same record with time enough names it (the cut above is the budget's doing)
-    monkeypatch.setattr(D, "fit_model", original)
+    monkeypatch.setattr(search, "fit_model", original)
     clock["offset"] = 0.0
     assert D.discover(read_trace(stem), budget=600.0).added_effects == ["nonlinear_stiffness"]
 
@@ -661,7 +666,7 @@ def test_the_creep_start_finds_the_kelvin_cells_of_a_record():
     T = np.where(t < 10.0, 0.0, np.where(t < 14400.0, 100.0, 5.0))
     EA, L = 3500.0, 12.0
     hold = float(np.max(np.diff(t[np.r_[0, np.flatnonzero(np.diff(T)) + 1, len(t) - 1]])))
-    grid = D.retardation_grid(t, hold)
+    grid = starts.retardation_grid(t, hold)
     taus, J = grid[[3, 7, 11]], np.array([1e-6, 3e-6, 5e-6])
     eps = T / EA
     for tau, j in zip(taus, J):
@@ -682,7 +687,7 @@ def test_the_creep_start_finds_the_kelvin_cells_of_a_record():
     _Sc.hold = hold
     from tether.models import parse_model
 
-    st = D._retardation_times_start(_Creep, parse_model("linear+creep"), {"EA": 3000.0}, _Sc)
+    st = starts._retardation_times_start(_Creep, parse_model("linear+creep"), {"EA": 3000.0}, _Sc)
     assert [st[f"creep_tau{k}"] for k in (1, 2, 3)] == pytest.approx(list(taus), rel=1e-12)
     assert [st[f"creep_J{k}"] for k in (1, 2, 3)] == pytest.approx(list(J), rel=5e-3)
     assert st["EA"] == pytest.approx(EA, rel=1e-4)
@@ -713,14 +718,14 @@ def test_a_named_slack_is_shown_with_the_balance_of_the_slack_model(tmp_path):
     ea = m * g * L / ub
     win = D.CandidateResult(effect="slack", model="linear+slack", added_parameters=0, rms=1.0, heldout_rms=1.0,
                             bic_change=-1.0, signature=0.0, signature_text=sig["text"], fit=model("linear+slack", ea))
-    text = D._slack_seen_by(tr, win)
+    text = document._slack_seen_by(tr, win)
     share = 100.0 * np.mean(np.asarray(tr.measured) + ub < 0)
     assert share > 1.0
     assert text.startswith(sig["text"])
     assert f"balance stretch {ub:.4g} m" in text and f"below zero in {share:.1f} % of the record" in text
     # a slack the model before the step already showed keeps its own signature
     win.signature, win.signature_text = 0.3, "shown before"
-    assert D._slack_seen_by(tr, win) == "shown before"
+    assert document._slack_seen_by(tr, win) == "shown before"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -776,5 +781,5 @@ def test_a_long_record_searched_thinned_reports_the_whole_records_errors(tmp_pat
     # and the start model's values from every third sample fit the whole record as well as its own
     # fit to the whole record does
     whole = read_trace(stem)
-    lin = D.fit_model(whole, D.parse_model("linear", "forced"), (), [None], D._scales(whole))
+    lin = D.fit_model(whole, models.parse_model("linear", "forced"), (), [None], scales._scales(whole))
     assert 0.999 * lin.rms <= doc["rmse_initial"] <= 1.01 * lin.rms

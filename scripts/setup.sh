@@ -69,7 +69,9 @@ stage_end
 stage_begin "python packages"
 STAMP="$VENV/.kt-pip-stamp"
 if [ -f pyproject.toml ]; then
-  want="pyproject $(sha256sum pyproject.toml | cut -d' ' -f1) $("$VENV/bin/python" --version 2>&1)"
+  # the package's module files too: the editable install maps each module to its file, so a module
+  # added, moved or made a package (tether/discover/) needs the install again
+  want="pyproject $(sha256sum pyproject.toml | cut -d' ' -f1) $("$VENV/bin/python" --version 2>&1) modules $(cd python && find . -name '*.py' | sort | sha256sum | cut -c1-16)"
   # editable: the Python package only (pyproject.toml); CMake builds $BUILD_DIR below, where it finds the FMU
   PIP_ARGS=(-e '.[test]')
 else

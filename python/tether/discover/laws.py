@@ -1,0 +1,197 @@
+"""What an effect and a law are, in one place: the effects each experiment can reveal, the models
+that add an effect (one law each, hysteresis several), the shape terms of each law, the terms a fit
+frees and their floors. The seed of the registry of issue 25."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Sequence
+
+import numpy as np
+
+from ..models import IWAN_EPS, IWAN_EPS_FIT, IWAN_K, ModelSpec
+from ..traces import Trace
+from .scales import _Scales
+
+
+#: candidate effects per experiment (what the experiment can reveal), in the order they are tried
+CANDIDATES = {
+    "free_vibration": ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "slack"),
+    "forced": ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "slack"),
+    "load_unload": ("nonlinear_stiffness", "hysteresis", "creep"),
+    "creep": ("creep", "nonlinear_stiffness", "hysteresis"),
+}
+
+
+#: shape terms of a named effect's law that the last stage may free (see refine_shapes), per effect
+#: and law: each entry one group tried from the final model. The search for effects keeps them at
+#: the classic law's values (Bouc-Wen n = 1, no generalized terms): they change the shape of a law,
+#: not which effects the record shows.
+SHAPE_TERMS = {
+    ("hysteresis", "boucwen"): (("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
+                                ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")),
+    # the Iwan bank's slip strains, off the fit's grid (a load test of twelve elements slipping
+    # between 4e-4 and 8e-3: 3.7 x noise on the grid, 1.2 x with the slip strains free)
+    ("hysteresis", "iwan"): (IWAN_EPS_FIT,),
+    # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
+    ("nonlinear_damping", "displacement"): (("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
+                                             "c_table_6"),),
+    # the elastic law beyond the cubic: its power term (a stiffness growing from zero as a
+    # fractional power of the strain, which the cubic misses near eps = 0: a load test of the
+    # generator's power-law tether with Iwan friction stopped at 2.05 x noise with the cubic)
+    ("nonlinear_stiffness", "cubic"): (("pow_F", "pow_n"),),
+}
+
+
+#: terms a shape refinement sets but does not fit
+SHAPE_HELD = ("c_table_dx", "pow_eps")
+
+
+#: terms a shape group replaces: held at 0 while it is fitted and after it is kept (the table of
+#: c(x) and the drag both stand for a damping growing with amplitude; freed together the fit of a
+#: Gaussian c(x) stopped at 2.0 x noise and its held-out prediction at 39 x; the table spans
+#: c1 |x| + c2 x^2 over the record's range: beside it c2 wandered (to 240-320 N s/m^3 against
+#: knots that fell to match), and a fit of the record's first part went with it)
+SHAPE_REPLACES = {"c_table_1": ("c_drag", "c1", "c2")}
+
+
+#: terms a fit that does not free them holds at its start's value, not at the FMU's default: the
+#: table's knot spacing, the terms a shape group replaces (their 0 is not every default: c1's is
+#: 25 N s/m^2) and every shape term (e.g. the table's knots a part of the record does not reach)
+HELD_AT_START = tuple(dict.fromkeys(
+    SHAPE_HELD + tuple(r for rs in SHAPE_REPLACES.values() for r in rs)
+    + tuple(k for groups in SHAPE_TERMS.values() for g in groups for k in g) + IWAN_EPS))
+
+
+def _replaced(group: Sequence[str]) -> tuple:
+    return tuple(r for g in group for r in SHAPE_REPLACES.get(g, ()))
+
+
+def _law_of(spec: ModelSpec, effect: str) -> str | None:
+    return {"hysteresis": spec.hysteresis, "nonlinear_damping": spec.damping,
+            "nonlinear_stiffness": spec.stiffness}.get(effect)
+
+
+#: knots of the FMU's damping table c_table_1..6
+DAMPING_TABLE_KNOTS = 6
+
+
+def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
+    """What a discovery fit frees: the elastic law (EA; a1 a2 a3; Kawabata's LT RT F_ref and, in
+    load tests, the residual strain), the damping in the payload rig (c0; c1 c2), Bouc-Wen's A beta
+    gamma, the Iwan element stiffnesses (iw_k1..8, on the estimate's grid of slip strains), and the
+    creep compliances and slip (creep_J1..3, slip_capacity0, slip_rate). Unlike
+    tether.fit's defaults, a creep test frees the cubic too: two load levels leave one direction of
+    it undetermined, but discovery asks only whether the law lowers the error."""
+    from ..fit import CREEP_FREE, law_free_parameters
+
+    spec = spec.for_experiment(experiment)
+    names = law_free_parameters(spec)
+    if spec.rig == "payload" and spec.damping == "displacement":
+        names.append("c_drag")   # nonlinear damping through the displacement or through the speed
+    if spec.creep:
+        # a load-unload test (minutes) sees the fast cells and the slip rate; a creep test (hours
+        # of holds) the time constants and the slip's shape as well
+        names += list(CREEP_FREE + (CREEP_SHAPE if experiment == "creep" else ()))
+    return names
+
+
+#: the creep terms discovery frees in a creep test beyond tether.fit's CREEP_FREE
+CREEP_SHAPE = ("creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau", "slip_limit",
+               "slip_load_half")
+
+
+def _floor(name: str, sc: _Scales) -> float:
+    """Smallest |start| of a linearly scaled parameter (the engine scales it by its start)."""
+    return {"a2": 1e-3 * sc.ea / sc.eps, "a3": 1e-3 * sc.ea / sc.eps ** 2,
+            "bw_beta": 1e-2 / sc.amp, "bw_gamma": 1e-2 / sc.amp}.get(name, 0.0)
+
+
+_POSITIVE = ("EA", "a1", "c0", "c1", "c2", "c_drag", "bw_A", "kaw_F_ref", "creep_J1", "creep_J2", "creep_J3",
+             "slip_capacity0", "slip_rate", "creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau",
+             "slip_limit", "slip_load_half", *IWAN_K)
+
+
+def sampled_branches(trace: Trace, min_samples: int = 3) -> bool:
+    """Load tests: does the record hold samples on a loading path and on an unloading path over a
+    common range of load (between 5 % and 95 % of the largest)? Only then can it tell hysteresis
+    from a nonlinear elastic law. A creep test that changes its weights within one sample
+    interval samples only the held levels; a Masing-type hysteresis returns to the same strain at
+    every revisit of a level, so there it is a single-valued load-strain relation, exactly what
+    nonlinear stiffness gives."""
+    T = np.asarray(trace.input, float)
+    if len(T) < 3:
+        return False
+    top = float(np.max(np.abs(T)))
+    if not top > 0:
+        return False
+    d_in, d_out = np.diff(T)[:-1], np.diff(T)[1:]          # the steps into and out of each inner sample
+    inner = T[1:-1]
+    mid = (inner > 0.05 * top) & (inner < 0.95 * top)
+    tol = 1e-9 * top
+    up = inner[mid & (d_in > tol) & (d_out > tol)]
+    down = inner[mid & (d_in < -tol) & (d_out < -tol)]
+    if len(up) < min_samples or len(down) < min_samples:
+        return False
+    lo, hi = max(up.min(), down.min()), min(up.max(), down.max())
+    return int(np.sum((up >= lo) & (up <= hi))) >= min_samples and int(np.sum((down >= lo) & (down <= hi))) >= min_samples
+
+
+def candidates(trace: Trace) -> tuple[str, ...]:
+    """The effects a record of this experiment can reveal (CANDIDATES), less hysteresis in a
+    load test that samples no loading and unloading paths (sampled_branches)."""
+    c = CANDIDATES[trace.experiment]
+    if trace.rig != "payload" and not sampled_branches(trace):
+        c = tuple(e for e in c if e != "hysteresis")
+    return c
+
+
+def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
+    """The models that add ``effect`` to ``spec``: one law per effect, but hysteresis has two, the
+    paper's Bouc-Wen force and the Iwan bank of inter-fibre friction (Bouc-Wen's tangent stiffness
+    approaches zero exponentially, friction's falls to zero at a finite strain: on records of the
+    latter Bouc-Wen left 3.4-10 x noise, bench/hysteresis_law_gap.py), and in a load test a third,
+    the paper's Kawabata branches (which replace the elastic law: their loading curve is a power
+    law)."""
+    new = _model_for(spec, effect)
+    out = [new] if new is not None else []
+    if effect == "hysteresis" and spec.hysteresis == "none":
+        out.append(replace(spec, hysteresis="iwan"))
+    if effect == "hysteresis" and spec.hysteresis == "none" and trace.rig != "payload":
+        out.append(replace(spec, hysteresis="kawabata"))
+    if effect == "nonlinear_stiffness" and spec.hysteresis == "kawabata":
+        # Kawabata's power-law branches are one shape of nonlinear stiffness; a cubic law under a
+        # Bouc-Wen force is another, and the one that carries the effect by name
+        out.append(replace(spec, stiffness="cubic", hysteresis="boucwen"))
+    return out
+
+
+#: the damping table's knots (SHAPE_TERMS), tried as the law of a nonlinear-damping candidate
+DAMPING_TABLE = SHAPE_TERMS[("nonlinear_damping", "displacement")][0]
+
+
+def _model_for(spec: ModelSpec, effect: str) -> ModelSpec | None:
+    if effect == "nonlinear_stiffness":
+        return None if spec.hysteresis == "kawabata" or spec.stiffness == "cubic" else replace(spec, stiffness="cubic")
+    if effect == "hysteresis":
+        return None if spec.hysteresis != "none" else replace(spec, hysteresis="boucwen")
+    if effect == "nonlinear_damping":
+        return None if spec.damping == "displacement" else replace(spec, damping="displacement")
+    if effect == "creep":
+        return None if spec.creep else replace(spec, creep=True)
+    if effect == "slack":
+        return None if spec.slack else replace(spec, slack=True)
+    raise ValueError(effect)
+
+
+def _without(spec: ModelSpec, effect: str) -> ModelSpec:
+    return {"nonlinear_stiffness": lambda: replace(spec, stiffness="linear"),
+            "hysteresis": lambda: replace(spec, hysteresis="none"),
+            "nonlinear_damping": lambda: replace(spec, damping="viscous"),
+            "creep": lambda: replace(spec, creep=False),
+            "slack": lambda: replace(spec, slack=False)}[effect]()
+
+
+#: the laws of one effect that stand in for each other: the law that won an effect's step is fitted
+#: again at the end with its rival in its place (rival_law)
+RIVAL_LAWS = {"hysteresis": ("boucwen", "iwan")}
