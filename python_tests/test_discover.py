@@ -48,7 +48,7 @@ def _strict(token):
 def _record_and_part(stem):
     """A record read back, its noise estimate and scales, and the first part held-out tests fit."""
     tr = read_trace(stem)
-    part = samples._truncated(tr, judge.FIT_PART)
+    part = samples._truncated(tr, judge.CRITERIA.fit_part)
     return tr, D.estimate_noise(tr).sigma, scales._scales(tr), part, len(part.time), scales._scales(part)
 
 

@@ -30,7 +30,7 @@ Effects map to model terms as in :mod:`tether.models`: ``nonlinear_stiffness`` -
 ``hysteresis`` -> a Bouc-Wen force (in load tests also the Kawabata branches, the better of the two),
 ``nonlinear_damping`` -> c(x) = c0 + c1|x| + c2 x^2 (and a drag term where the record has one); where
 that polynomial closes only part of the gap, the candidate is fitted again with the tabulated c(x)
-(DAMPING_TABLE_TRIGGER) and competes with the better of the two,
+(Criteria.damping_table_trigger) and competes with the better of the two,
 ``creep`` -> Kelvin cells and slip, ``slack`` -> no compression (no parameter of its own).
 
 The package, one job per module: ``laws`` (what an effect and a law are), ``noise``, ``scales``,

@@ -240,6 +240,8 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     where no quick fit gets 0.1 % below it, the best of them is returned as it is (a candidate with
     nothing to gain; carrying it to convergence cost 15-40 s a time on a 10 s record and always
     ended where the quick fits had)."""
+    from .judge import CRITERIA      # (the judge reads fits: imported when a fit runs)
+
     t0 = time.perf_counter()
     spec = spec.for_experiment(trace.experiment)
     names = free_parameters(spec, trace.experiment)
@@ -259,7 +261,7 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
             evaluations += r.evaluations
             if best is None or r.rms < best.rms:
                 best, best_i = r, i
-        gains = best is not None and (baseline_rms is None or best.rms < (1.0 - 1e-3) * baseline_rms)
+        gains = best is not None and (baseline_rms is None or best.rms < (1.0 - CRITERIA.least_gain) * baseline_rms)
         if gains:
             # carried to convergence along its own path: the winner's start again, with the full
             # iteration budget (restarting from the quick fit's end resets the staging and the

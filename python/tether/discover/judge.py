@@ -1,8 +1,13 @@
-"""The judge: when an effect, a shape or a law earns its place (docs/discovery.md tells why)."""
+"""The judge: every threshold of acceptance in one place (Criteria), the BIC change computed once
+(bic_change), and the rules side by side: an effect on the whole record (full_data_verdict) and on
+the held-out part (heldout_verdict), slack that must act (_slack_acts), a shape or a law
+(_shape_judged), and when the damping table is tried (_partial_damping_gain). docs/discovery.md,
+"The criteria, and why", tells the measurements behind each value."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -13,25 +18,57 @@ from .laws import DAMPING_TABLE
 from .records import CandidateResult
 
 
-#: the held-out test judges a shape term only where the final model predicts the held-out part at
-#: most this many times worse than it fits the whole record (a lightly damped forced record drifts
-#: in phase over its last part whatever the shape: the test then says nothing about the shape)
-SHAPE_HELDOUT_INFORMATIVE = 3.0
+@dataclass(frozen=True)
+class Criteria:
+    """The thresholds that judge (gaps and errors in units of the noise sigma; the gap of an RMS
+    error is sqrt(rms^2 - sigma^2), _gap). One line of why each; the story is docs/discovery.md."""
+
+    #: the model reproduces the record at rms <= within_noise sigma: nothing left to explain
+    within_noise: float = 1.1
+    #: the held-out test fits this first part of the record (whole periods) and predicts the rest
+    fit_part: float = 0.6
+    #: an effect must shrink the whole record's gap to this fraction: beyond a spare parameter's reach
+    gap_fraction: float = 0.5
+    #: ... and the held-out part's gap to this fraction: a law that only bends to the first part fails
+    heldout_gap_fraction: float = 0.7
+    #: both fractions rise by up to this much for gross gaps: two missing effects may share one gap
+    relax_by: float = 0.3
+    #: ... from this gap [sigma] on, fully over one decade of gap (log scale)
+    relax_from_gap: float = 3.0
+    #: the held-out fraction, relaxed, never above this: the held-out part must still improve
+    heldout_fraction_cap: float = 0.9
+    #: a whole-record gap this gross [sigma] ...: a fit to the first part is bent by all that is missing
+    gross_gap: float = 20.0
+    #: ... shrunk to this fraction by the candidate: the held-out test is not asked
+    gross_gap_shrink: float = 0.5
+    #: an effect without parameters (slack) must shrink the gap to this fraction: it cannot bend to noise
+    zero_parameter_fraction: float = 0.9
+    #: ... and lower the BIC by this much at least
+    zero_parameter_bic: float = -10.0
+    #: slack acts only where the model with slack off differs by more than this share of sigma
+    slack_acts: float = 0.01
+    #: an error lower by less than this share is no gain (fits not carried on, refits not kept)
+    least_gain: float = 1e-3
+    #: the held-out test judges a shape or a law only where the model predicts the held-out part at
+    #: most this many times worse than it fits the whole record (a forced record drifts in phase)
+    shape_heldout_informative: float = 3.0
+    #: a polynomial damping that lowers the BIC and leaves at most this fraction of the gap is tried
+    #: again with the table of c(x): a damping of another shape
+    damping_table_trigger: float = 0.8
+    #: the Iwan bank's last stages run where the bank misses the record by this gap [sigma] or more
+    iwan_stages_gap: float = 1.0
 
 
-#: the model reproduces the record when its RMS error is at most this multiple of the noise
-WITHIN_NOISE = 1.1
+#: the criteria every discovery run judges by
+CRITERIA = Criteria()
 
 
-#: the first part of the record the held-out fits see (periodic records: whole periods)
-FIT_PART = 0.6
-
-
-#: a damping candidate whose polynomial c(x) lowers the BIC and leaves at most this fraction of the
-#: gap, yet not the fraction the verdict asks, is fitted again with the table of c(x): a damping of
-#: another shape (a saturating Gaussian c(x) under a Bouc-Wen force: the polynomial took the gap
-#: from 3.78 to 2.54 sigma and the damping went unnamed)
-DAMPING_TABLE_TRIGGER = 0.8
+def bic_change(before: ModelFit, after: ModelFit, n: int) -> float:
+    """The BIC of ``after`` less that of ``before``, on the n samples both were fitted to (BIC =
+    n ln(rms^2) + k ln(n), k the free parameters); +inf where ``after``'s fit failed."""
+    if not after.ok:
+        return float("inf")
+    return _bic(after.rms, after.n_free, n) - _bic(before.rms, before.n_free, n)
 
 
 def _partial_damping_gain(cr: "CandidateResult", sigma: float, rms_before: float) -> bool:
@@ -41,7 +78,7 @@ def _partial_damping_gain(cr: "CandidateResult", sigma: float, rms_before: float
             or set(DAMPING_TABLE) <= set(fm.shape)):
         return False
     g0, g1 = _gap(rms_before, sigma), _gap(fm.rms, sigma)
-    return g0 > 0 and cr.bic_change < 0 and g1 <= DAMPING_TABLE_TRIGGER * g0
+    return g0 > 0 and cr.bic_change < 0 and g1 <= CRITERIA.damping_table_trigger * g0
 
 
 def _slack_acts(trace: Trace, spec: ModelSpec, fm: ModelFit, sigma: float, verdict: str) -> tuple[bool, str]:
@@ -54,7 +91,7 @@ def _slack_acts(trace: Trace, spec: ModelSpec, fm: ModelFit, sigma: float, verdi
     except (RuntimeError, ValueError):
         return True, verdict                      # cannot even simulate without slack: it acts
     diff = float(np.max(np.abs(taut - fm.predicted))) if np.all(np.isfinite(taut)) else float("inf")
-    if diff > 0.01 * sigma:
+    if diff > CRITERIA.slack_acts * sigma:
         return True, verdict
     return False, (f"slack never acts in the fitted model (with slack off it simulates the same to "
                    f"{diff / sigma:.1g} x noise): the gain is the refit's, not slack's")
@@ -69,44 +106,28 @@ def _gap(rms: float, sigma: float) -> float:
     return math.sqrt(max(rms ** 2 - sigma ** 2, 0.0))
 
 
-#: a candidate must shrink the gap above the noise to at most this fraction, on the whole record ...
-GAP_FRACTION = 0.5
-
-
-#: ... and on the held-out part (judged by a fit to the first part only)
-HELDOUT_GAP_FRACTION = 0.7
-
-
 def _required_fraction(base: float, gap_over_noise: float) -> float:
-    """The fraction a gap must shrink to: ``base`` for gaps up to 3 sigma, relaxed towards
-    base + 0.3 (at 30 sigma and beyond). Where the gap is many times the noise, two missing
-    effects may each explain only part of it, and a reduction by a fifth is still far beyond
-    anything the noise or a spare parameter could produce."""
-    x = min(max(math.log10(max(gap_over_noise, 1e-12) / 3.0), 0.0), 1.0)
-    return base + 0.3 * x
-
-
-#: an effect without parameters of its own (slack) needs a smaller shrink of the gap, at this
-#: fraction, and a BIC lower by at least ZERO_PARAMETER_BIC: it cannot bend to the noise, it changes
-#: the model only where the record shows the physics (the tether would be in compression)
-ZERO_PARAMETER_FRACTION = 0.9
-
-
-ZERO_PARAMETER_BIC = -10.0
+    """The fraction a gap must shrink to: ``base`` for gaps up to CRITERIA.relax_from_gap (3 sigma),
+    relaxed towards base + CRITERIA.relax_by (0.3; at ten times that gap and beyond). Where the gap
+    is many times the noise, two missing effects may each explain only part of it, and a reduction
+    by a fifth is still far beyond anything the noise or a spare parameter could produce."""
+    x = min(max(math.log10(max(gap_over_noise, 1e-12) / CRITERIA.relax_from_gap), 0.0), 1.0)
+    return base + CRITERIA.relax_by * x
 
 
 def full_data_verdict(sigma: float, rms_before: float, rms_after: float, bic_change: float,
                       added_parameters: int = 1) -> tuple[bool, str]:
-    """Whole record: a lower BIC, and the gap above the noise at most GAP_FRACTION of what it was
-    (ZERO_PARAMETER_FRACTION for an effect that adds no parameter)."""
+    """Whole record: a lower BIC, and the gap above the noise at most CRITERIA.gap_fraction of what it
+    was (an effect that adds no parameter: CRITERIA.zero_parameter_fraction, and a BIC lower by
+    CRITERIA.zero_parameter_bic)."""
     g0, g1 = _gap(rms_before, sigma), _gap(rms_after, sigma)
     if not g0 > 0 or not rms_after < rms_before:
         return False, f"nothing to gain: RMS error {rms_before / sigma:.2f} -> {rms_after / sigma:.2f} x noise"
     why = []
     zero = added_parameters <= 0
-    if not bic_change < (ZERO_PARAMETER_BIC if zero else 0.0):
+    if not bic_change < (CRITERIA.zero_parameter_bic if zero else 0.0):
         why.append(f"BIC changes by {bic_change:+.1f}")
-    frac = ZERO_PARAMETER_FRACTION if zero else _required_fraction(GAP_FRACTION, g0 / sigma)
+    frac = CRITERIA.zero_parameter_fraction if zero else _required_fraction(CRITERIA.gap_fraction, g0 / sigma)
     if not g1 <= frac * g0:
         why.append(f"the gap above the noise shrinks only from {g0 / sigma:.2f} to {g1 / sigma:.2f} sigma")
     if why:
@@ -114,34 +135,31 @@ def full_data_verdict(sigma: float, rms_before: float, rms_after: float, bic_cha
     return True, f"gap {g0 / sigma:.2f} -> {g1 / sigma:.2f} sigma, BIC {bic_change:+.0f}"
 
 
-#: a whole-record gap at least this many sigma, at least halved by the candidate: the held-out test
-#: is not asked (see heldout_verdict)
-GROSS_GAP = 20.0
-
-
 def heldout_verdict(sigma: float, held_before: float, held_after: float, rms_before: float | None = None,
                     rms_after: float | None = None) -> tuple[bool, str]:
     """The last part of the record, predicted by fits to the first part: the gap above the noise at
-    most HELDOUT_GAP_FRACTION of what it was. Not asked when the current model misses the whole
-    record grossly (a gap of GROSS_GAP sigma or more) and the candidate at least halves it: then
+    most CRITERIA.heldout_gap_fraction of what it was. Not asked when the current model misses the
+    whole record grossly (a gap of CRITERIA.gross_gap sigma or more) and the candidate at least
+    halves it (CRITERIA.gross_gap_shrink): then
     the fit to the first part is bent by everything the model still lacks, and its prediction of
     a decayed or quiet last part says little (a free vibration's last 40 % may sit at a few sigma
     while its first part is at a hundred)."""
     if rms_before is not None and rms_after is not None and math.isfinite(rms_after):
         g0, g1 = _gap(rms_before, sigma), _gap(rms_after, sigma)
-        if g0 >= GROSS_GAP * sigma and g1 <= 0.5 * g0:
+        if g0 >= CRITERIA.gross_gap * sigma and g1 <= CRITERIA.gross_gap_shrink * g0:
             return True, (f"held-out test not asked: the gap of {g0 / sigma:.0f} sigma is gross and the candidate "
                           f"more than halves it")
     h0, h1 = _gap(held_before, sigma), _gap(held_after, sigma)
-    if not h1 <= min(_required_fraction(HELDOUT_GAP_FRACTION, h0 / sigma), 0.9) * h0 or not math.isfinite(held_after):
+    frac = min(_required_fraction(CRITERIA.heldout_gap_fraction, h0 / sigma), CRITERIA.heldout_fraction_cap)
+    if not h1 <= frac * h0 or not math.isfinite(held_after):
         return False, f"on the held-out part the gap goes from {h0 / sigma:.2f} to {h1 / sigma:.2f} sigma"
     return True, f"held-out gap {h0 / sigma:.2f} -> {h1 / sigma:.2f} sigma"
 
 
 def _heldout_judges(held: float, rms: float) -> bool:
     """Whether the held-out prediction can judge a shape or a law: the model predicts the held-out
-    part at most SHAPE_HELDOUT_INFORMATIVE times worse than it fits the whole record."""
-    return held <= SHAPE_HELDOUT_INFORMATIVE * rms
+    part at most CRITERIA.shape_heldout_informative times worse than it fits the whole record."""
+    return held <= CRITERIA.shape_heldout_informative * rms
 
 
 def _not_kept_for_budget(records) -> None:

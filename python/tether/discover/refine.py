@@ -8,7 +8,7 @@ import numpy as np
 
 from ..traces import Trace
 from .fitting import _heldout, _side_by_side, ModelFit
-from .judge import _bic, _heldout_judges, _shape_judged, WITHIN_NOISE
+from .judge import CRITERIA, _heldout_judges, _shape_judged, bic_change
 from .laws import _law_of, SHAPE_TERMS
 from .records import Refinement
 from .scales import _Scales
@@ -40,11 +40,11 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
     shape terms of a named effect's law (SHAPE_TERMS), one group at a time from the final model.
     A group is kept when it lowers the BIC on the whole record and does not worsen the prediction
     of the held-out part by a fit to the first part (asked only where that prediction can judge:
-    SHAPE_HELDOUT_INFORMATIVE); the best such group wins. ``skip``: effects whose law was refined
+    CRITERIA.shape_heldout_informative); the best such group wins. ``skip``: effects whose law was refined
     before. Returns the model (refined or not), its held-out error and the Refinement records."""
     n = len(trace.time)
     groups = [(e, g) for e, g in _shape_groups(cur, skip) if not set(g) <= set(cur.shape)]
-    if cur.rms <= WITHIN_NOISE * sigma or not groups:
+    if cur.rms <= CRITERIA.within_noise * sigma or not groups:
         return cur, cur_held, []
     out, best = [], None
 
@@ -58,8 +58,7 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
     # the groups' fits are independent: side by side
     group_fits = _side_by_side(lambda eg, alone: fit(trace, cur.spec, cur.effects, starts(eg[1]), extra=eg[1],
                                                      own_thread=alone), groups)
-    bics = [_bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
-            for fm in group_fits]
+    bics = [bic_change(cur, fm, n) for fm in group_fits]
     # the held-out fits of the groups that lower the BIC, where that prediction can judge: side by side
     asked = [i for i, fm in enumerate(group_fits) if fm.ok and bics[i] < 0.0 and fm.rms < cur.rms
              and _heldout_judges(cur_held, cur.rms)]

@@ -12,7 +12,7 @@ import numpy as np
 from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K, IWAN_K_FIT
 from ..traces import Trace
 from .fitting import _heldout, ModelFit
-from .judge import _bic, _heldout_judges, _shape_judged, WITHIN_NOISE
+from .judge import CRITERIA, _heldout_judges, _shape_judged, bic_change
 from .laws import RIVAL_LAWS
 from .records import Refinement
 
@@ -55,7 +55,7 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     hysteresis, the hysteresis law is fitted again with its rival in its place, from the rival's
     own fit of the hysteresis step and the final model's other terms. The rival is kept when it
     lowers the BIC and does not worsen the held-out prediction (asked where that prediction can
-    judge, SHAPE_HELDOUT_INFORMATIVE, as for the shape terms). Starts: the rival's own fit, with the
+    judge, CRITERIA.shape_heldout_informative, as for the shape terms). Starts: the rival's own fit, with the
     final model's elastic law or its own; the rival matched to the fitted law's stiffness and force;
     tether.fit's data-based estimate of the whole model. ``rivals``: the rival fits' parameters
     of the hysteresis step, by law. ``elastic_reshaped``: the elastic law's shape was refined after
@@ -68,7 +68,7 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     effect = "hysteresis"
     law = cur.spec.hysteresis
     laws = RIVAL_LAWS[effect]
-    if (cur.rms <= WITHIN_NOISE * sigma or law not in laws or effect not in added
+    if (cur.rms <= CRITERIA.within_noise * sigma or law not in laws or effect not in added
             or (list(added).index(effect) == len(added) - 1 and not elastic_reshaped)):
         return cur, cur_held, None
     other = next(x for x in laws if x != law)
@@ -100,7 +100,7 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
                        f"the fit failed: {fm.message}", law=f"{law} -> {other}")
         say(f"  law of {effect}, {law} -> {other}: not kept: {r.verdict}")
         return cur, cur_held, r
-    bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n)
+    bic = bic_change(cur, fm, n)
     held, verdict = float("nan"), ""
     if not (bic < 0.0 and fm.rms < cur.rms):
         verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC changes by {bic:+.1f}: "
@@ -176,7 +176,7 @@ def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, 
     iterations is carried on. The same model with the same free terms, kept when its error on the
     whole record is lower. The held-out error of a fit to the first part is recorded beside it.
     Returns the model, its held-out error and a Refinement or None."""
-    if cur.spec.hysteresis != "iwan" or cur.rms <= WITHIN_NOISE * sigma:
+    if cur.spec.hysteresis != "iwan" or cur.rms <= CRITERIA.within_noise * sigma:
         return cur, cur_held, None
     names = [n for n in IWAN_K if n in cur.free]           # the bank's elements (the others absent)
     k = np.array([float(cur.params.get(n, 0.0)) for n in names])
@@ -202,7 +202,7 @@ def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, 
         return cur, cur_held, r
     pf = fit(part, fm.spec, fm.effects, [fm.params], extra=fm.shape)
     held = _heldout(trace, fm.spec, pf.params, first) if pf.ok else float("inf")
-    bic = _bic(fm.rms, fm.n_free, len(trace.time)) - _bic(cur.rms, cur.n_free, len(trace.time))
+    bic = bic_change(cur, fm, len(trace.time))
     live = int(np.sum(np.array([fm.params[n] for n in names]) >= IWAN_IDLE_SHARE * total))
     verdict = (f"{where}: "
                f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise with the same terms, BIC {bic:+.0f}, "
@@ -212,13 +212,6 @@ def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, 
                    {n: float(fm.params[n]) for n in names}, restart=True)
     say(f"  {n_idle} idle Iwan element{'s' if n_idle > 1 else ''} restarted: kept: {verdict}")
     return fm, held, r
-
-
-#: the Iwan bank's last stages (restart_idle_elements, finer_bank) run where the bank misses the
-#: record by at least this many noise sigmas above the noise (_gap): below, they return little for
-#: their time (a forced record with Gaussian damping, 10 s at 200 Hz: 1.40 -> 1.34 x noise for 21 s
-#: of a run that then took 70 s, against 54 s without them)
-IWAN_STAGES_GAP = 1.0
 
 
 #: a finer bank splits each live element in two, their slip strains this share below and above its
@@ -245,9 +238,9 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
     between the slip strains (idle_slip_strains_moved) at IWAN_RESTART_SHARE, and every element's
     stiffness and slip strain is fitted. Kept as a shape refinement is: a lower BIC on the whole
     record and no worse a prediction of the held-out part by a fit to the first part (asked where
-    that prediction can judge, SHAPE_HELDOUT_INFORMATIVE). Returns the model, its held-out error and
+    that prediction can judge, CRITERIA.shape_heldout_informative). Returns the model, its held-out error and
     a Refinement or None."""
-    if cur.spec.hysteresis != "iwan" or cur.rms <= WITHIN_NOISE * sigma:
+    if cur.spec.hysteresis != "iwan" or cur.rms <= CRITERIA.within_noise * sigma:
         return cur, cur_held, None
     bank = [n for n in IWAN_K if n in cur.free]
     if len(bank) >= len(IWAN_K):
@@ -273,7 +266,7 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
     cap_factor = bank_cap_factor(len(IWAN_K))
     fm = fit(trace, cur.spec, cur.effects, [start], extra=extra, cap_factor=cap_factor)
     n = len(trace.time)
-    bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
+    bic = bic_change(cur, fm, n)
     held = float("nan")
     if not fm.ok:
         ok, verdict = False, f"the fit failed: {fm.message}"

@@ -15,12 +15,13 @@ from ..traces import Trace
 from .document import _evidence, _slack_seen_by, ordinal
 from .evidence import disagreement, regime_table, regimes, signatures
 from .fitting import _heldout, _side_by_side, DEFAULT_BUDGET, fit_model, ModelFit, predict, SECOND_SEARCH_CAP_SHARE
-from .judge import _bic, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, FIT_PART, full_data_verdict, heldout_verdict, WITHIN_NOISE
+from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, bic_change,
+                    full_data_verdict, heldout_verdict)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, RIVAL_LAWS
 from .noise import estimate_noise
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Step
 from .refine import _knots_unseen, _shape_groups, refine_shapes
-from .rival import bank_cap_factor, finer_bank, IWAN_STAGE_CAP_FACTOR, IWAN_STAGES_GAP, restart_idle_elements, rival_law
+from .rival import IWAN_STAGE_CAP_FACTOR, bank_cap_factor, finer_bank, restart_idle_elements, rival_law
 from .samples import _truncated, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
 from .scales import _scales
 from .starts import _damping_table_starts, _reduced_starts, candidate_starts
@@ -34,7 +35,7 @@ def _refit_without_slack(trace: Trace, cur: ModelFit, results: Sequence, sigma: 
     50.4 x noise where the slack candidate's refit of the same model reached 24.7 x."""
     for c in results:
         fm = c.fit
-        if (c.effect != "slack" or fm is None or not fm.ok or not fm.rms < (1.0 - 1e-3) * cur.rms
+        if (c.effect != "slack" or fm is None or not fm.ok or not fm.rms < (1.0 - CRITERIA.least_gain) * cur.rms
                 or _slack_acts(trace, cur.spec, fm, sigma, "")[0]):
             continue
         params = {k: fm.params[k] for k in cur.params if k in fm.params}
@@ -70,7 +71,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             f"model is fitted to the whole record")
     sc = _scales(trace)
     n = len(trace.time)
-    part = _truncated(trace, FIT_PART)
+    part = _truncated(trace, CRITERIA.fit_part)
     first = len(part.time)
     sc_part = _scales(part)
     spec = parse_model(start, trace.experiment)
@@ -140,7 +141,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             step = Step(model_before=cur.model, rms_before=cur.rms, heldout_before=cur_held, windows=windows,
                         regimes=regime_table(trace, cur, sigma, masks), candidates=[])
             steps.append(step)
-            if cur.rms <= WITHIN_NOISE * sigma:
+            if cur.rms <= CRITERIA.within_noise * sigma:
                 stop = f"the model reproduces the record within the noise (RMS error {cur.rms / sigma:.2f} x noise)"
                 break
             if len([s for s in steps if s.effect]) >= max_steps:
@@ -163,7 +164,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                     trace, job[1], _effects + (job[0],), job[2], sc, own_thread=alone, baseline_rms=_rms), jobs)
             for (eff, new, _), fm in zip(jobs, candidate_fits):
                 dk = fm.n_free - cur.n_free
-                bic = _bic(fm.rms, fm.n_free, n) - _bic(cur.rms, cur.n_free, n) if fm.ok else float("inf")
+                bic = bic_change(cur, fm, n)
                 cr = CandidateResult(effect=eff, model=fm.model, added_parameters=dk, rms=fm.rms,
                                      heldout_rms=float("nan"), bic_change=bic,
                                      signature=float(sig.get(eff, {}).get("score", 0.0)),
@@ -183,7 +184,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 tf = fit(trace, poly.spec, poly.effects, _damping_table_starts(trace, poly, sc), sc,
                          extra=DAMPING_TABLE, held=_replaced(DAMPING_TABLE))
                 dk = tf.n_free - cur.n_free
-                bic = _bic(tf.rms, tf.n_free, n) - _bic(cur.rms, cur.n_free, n) if tf.ok else float("inf")
+                bic = bic_change(cur, tf, n)
                 ct = CandidateResult(effect=cr.effect, model=tf.label, added_parameters=dk, rms=tf.rms,
                                      heldout_rms=float("nan"), bic_change=bic, signature=cr.signature,
                                      signature_text=cr.signature_text, fit=tf)
@@ -317,7 +318,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 rf = fit(trace, red, tuple(x for x in cur.effects if x != e), _reduced_starts(cur, red, sc), sc)
                 if not rf.ok:
                     continue
-                bic = _bic(cur.rms, cur.n_free, n) - _bic(rf.rms, rf.n_free, n)
+                bic = bic_change(rf, cur, n)
                 keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
                 if keep:
                     continue
@@ -347,7 +348,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             break
         fits.append(refined)
         cur = refined
-        if sweep == 2 or cur.rms <= WITHIN_NOISE * sigma:
+        if sweep == 2 or cur.rms <= CRITERIA.within_noise * sigma:
             if math.isfinite(refined_held):
                 cur_held = refined_held
             break
@@ -400,14 +401,14 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
 
     def iwan_stages() -> None:
         """An Iwan bank's last stages: its idle elements restarted, then a finer bank (each a no-op
-        for another law), where the bank misses the record by IWAN_STAGES_GAP or more. Where either
+        for another law), where the bank misses the record by CRITERIA.iwan_stages_gap or more. Where either
         is kept and the bank still misses the record so, the other laws' shape groups are tried
         again beside the new bank, its terms free (eval record 27, forced Iwan + Gaussian damping:
         the table of c(x) was refused beside a bank of three live elements, 33.62 -> 32.13 x noise
         and a held-out part that got worse; beside the sixteen of the finer bank it takes the model
         from 2.54 to 1.17 x noise, held-out 3.68 -> 1.77)."""
         nonlocal shape_free, shape_held
-        if _gap(cur.rms, sigma) < IWAN_STAGES_GAP * sigma:
+        if _gap(cur.rms, sigma) < CRITERIA.iwan_stages_gap * sigma:
             return
         kept = False
         for stage, where in ((restart_idle_elements, "while the idle Iwan elements were restarted"),
@@ -417,7 +418,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
                 kept |= adopt(stage(trace, part, first, cur, cur_held, sigma,
                                     lambda tr, sp, eff, starts, extra=(), cap_factor=1.0, **kw: shape_fit(
                                         tr, sp, eff, starts, extra, cap_factor=cap_factor * mf, **kw), say), where)
-        if not kept or budget_hit[0] or _gap(cur.rms, sigma) < IWAN_STAGES_GAP * sigma:
+        if not kept or budget_hit[0] or _gap(cur.rms, sigma) < CRITERIA.iwan_stages_gap * sigma:
             return
         shape_free = tuple(dict.fromkeys(shape_free + tuple(cur.shape)))
         shape_held = _replaced(shape_free)
