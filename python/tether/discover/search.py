@@ -50,416 +50,501 @@ def _refit_without_slack(trace: Trace, cur: ModelFit, results: Sequence, sigma: 
 
 def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None] | None = None,
              max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET) -> Discovery:
-    """Run the discovery loop on one trace (see the module docstring). ``progress`` receives one
+    """Run the discovery loop on one trace (see the package docstring). ``progress`` receives one
     line per stage. ``budget`` [s] bounds the run: a step whose fits are not all done when it is
     spent adds nothing, and the discovery stops with the model it has, saying so."""
-    t_begin = time.perf_counter()
-    deadline = None if budget is None else t_begin + float(budget)
-    budget_hit = [False]
-    say = progress or (lambda s: None)
-    noise = estimate_noise(trace)
-    sigma = noise.sigma
-    if not sigma > 0:
-        raise DiscoveryError(f"{trace.name}: the measured column shows no noise (a noise-free record): there is "
-                             "no scale to judge a gap against")
-    say(f"noise {sigma:.3g} m ({noise.method})")
-    whole = trace
-    every = search_thinning(whole, sigma)
-    if every > 1:
-        trace = thinned(whole, every)
-        say(f"searching on every {ordinal(every)} sample ({len(trace.time)} of {len(whole.time)}); the final "
-            f"model is fitted to the whole record")
-    sc = _scales(trace)
-    n = len(trace.time)
-    part = _truncated(trace, CRITERIA.fit_part)
-    first = len(part.time)
-    sc_part = _scales(part)
-    spec = parse_model(start, trace.experiment)
-    base_effects = tuple(spec.effects)
-    say(f"fitting the start model {spec.canonical}")
-    cur = fit_model(trace, spec, base_effects, [None], sc)
-    if not cur.ok:
-        raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
-    t_sim = time.process_time()          # CPU time, as the caps are counted
-    predict(trace, cur.spec, cur.params)
-    t_sim = time.process_time() - t_sim
-    cap = max(5.0, 2000.0 * t_sim)
-    fit_cap = cap                 # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
+    return Search(trace, start, progress, max_steps, heldout_candidates, budget).run()
 
-    shape_free: tuple = ()        # shape terms a refinement freed, kept free in every later fit
-    shape_held: tuple = ()        # and the terms they replace, held (at 0) in every later fit
 
-    def fit(tr, sp, eff, starts, scales, extra=(), held=(), own_thread=False, baseline_rms=None, cap_factor=1.0):
-        extra = tuple(extra) + tuple(k for k in shape_free if k not in extra and k in sp.parameters)
-        held = tuple(held) + shape_held
-        if tr is part:
-            held += _knots_unseen(part, extra, starts)
-        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap_factor * fit_cap, extra=extra, held=held,
-                      deadline=deadline, own_thread=own_thread, baseline_rms=baseline_rms)
-        if deadline is not None and time.perf_counter() > deadline:
-            budget_hit[0] = True          # this fit may have been cut short: it cannot judge
+class Search:
+    """One discovery run: the record (searched, and whole where the search thins it), its noise and
+    held-out split, the current fit and its held-out error, the steps, removals and refinements so
+    far, the time caps and the budget. run() takes the stages in turn: the search for effects
+    (step by step, each named effect re-tested once a later one is in), the shapes of the named
+    laws, a second search from a refined model, the Iwan bank's last stages and the rival law, and
+    the fit to the whole record."""
+
+    def __init__(self, trace: Trace, start: str, progress: Callable[[str], None] | None, max_steps: int,
+                 heldout_candidates: int, budget: float | None):
+        self.t_begin = time.perf_counter()
+        self.budget = budget
+        self.deadline = None if budget is None else self.t_begin + float(budget)
+        self.budget_hit = False          # a fit ran past the deadline: what it judged cannot be taken
+        self.say = progress or (lambda s: None)
+        self.max_steps, self.heldout_candidates = max_steps, heldout_candidates
+        self.noise = estimate_noise(trace)
+        self.sigma = self.noise.sigma
+        if not self.sigma > 0:
+            raise DiscoveryError(f"{trace.name}: the measured column shows no noise (a noise-free record): there "
+                                 "is no scale to judge a gap against")
+        self.say(f"noise {self.sigma:.3g} m ({self.noise.method})")
+        self.whole = trace
+        self.every = search_thinning(self.whole, self.sigma)
+        if self.every > 1:
+            trace = thinned(self.whole, self.every)
+            self.say(f"searching on every {ordinal(self.every)} sample ({len(trace.time)} of {len(self.whole.time)}); "
+                     f"the final model is fitted to the whole record")
+        self.trace = trace
+        self.sc = _scales(trace)
+        self.n = len(trace.time)
+        self.part = _truncated(trace, CRITERIA.fit_part)
+        self.first = len(self.part.time)
+        self.sc_part = _scales(self.part)
+        self.spec = parse_model(start, trace.experiment)
+        self.base_effects = tuple(self.spec.effects)
+        self.shape_free: tuple = ()      # shape terms a refinement freed, kept free in every later fit
+        self.shape_held: tuple = ()      # and the terms they replace, held (at 0) in every later fit
+        self.steps: list[Step] = []
+        self.removals: list[Removal] = []
+        self.refinements: list[Refinement] = []
+        self.rivals: dict = {}           # effect -> {law: parameters of its candidate's fit}
+        self.stop = ""
+        self.fit_start_model()
+
+    def fit_start_model(self) -> None:
+        """The start model, fitted; the time cap of the search's fits, 2000 of its simulations (CPU
+        time, as the caps are counted); its held-out error."""
+        spec, trace = self.spec, self.trace
+        self.say(f"fitting the start model {spec.canonical}")
+        cur = fit_model(trace, spec, self.base_effects, [None], self.sc)
+        if not cur.ok:
+            raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
+        t_sim = time.process_time()
+        predict(trace, cur.spec, cur.params)
+        t_sim = time.process_time() - t_sim
+        self.cap = max(5.0, 2000.0 * t_sim)
+        self.fit_cap = self.cap          # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
+        self.cur = cur
+        part_fit = self.fit(self.part, spec, self.base_effects, [cur.params], self.sc_part)
+        self.cur_held = _heldout(trace, spec, part_fit.params, self.first)
+        self.say(f"{cur.model}: RMS error {cur.rms:.3g} m = {cur.rms / self.sigma:.2f} x noise ({cur.seconds:.1f} s)")
+        self.fits = [cur]
+
+    # ---- fits, as every stage asks for them
+    def fit(self, tr, sp, eff, starts, scales, extra=(), held=(), own_thread=False, baseline_rms=None,
+            cap_factor=1.0) -> ModelFit:
+        """fit_model with the search's shape terms free (and those they replace held), the unseen
+        knots of the damping table held in a fit of the first part, the stage's time cap and the
+        budget's deadline; a fit that ends past the deadline marks the budget spent."""
+        extra = tuple(extra) + tuple(k for k in self.shape_free if k not in extra and k in sp.parameters)
+        held = tuple(held) + self.shape_held
+        if tr is self.part:
+            held += _knots_unseen(self.part, extra, starts)
+        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap_factor * self.fit_cap, extra=extra, held=held,
+                      deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms)
+        if self.deadline is not None and time.perf_counter() > self.deadline:
+            self.budget_hit = True           # this fit may have been cut short: it cannot judge
         return r
 
-    def out_of_budget(where: str) -> str:
-        return (f"the time budget of {budget:.0f} s was spent {where}; the model is the last one that was "
+    def shape_fit(self, tr, sp, eff, starts, extra, own_thread=False, cap_factor=1.0) -> ModelFit:
+        """A fit with the shape terms ``extra`` free and the terms they replace held."""
+        return self.fit(tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, extra,
+                        held=_replaced(extra), own_thread=own_thread, cap_factor=cap_factor)
+
+    def heldout_of(self, m: ModelFit) -> float:
+        """The held-out error of ``m``: its prediction of the held-out part by its fit to the first."""
+        pf = self.fit(self.part, m.spec, m.effects, [m.params], self.sc_part)
+        return _heldout(self.trace, m.spec, pf.params, self.first) if pf.ok else float("inf")
+
+    def model_cap_factor(self, m: ModelFit) -> float:
+        """The time cap for fits of ``m``'s kind, as a multiple of the search's: the cap is 2000
+        simulations of the start model, and a model with an Iwan bank and a table of c(x) simulates
+        several times slower; at least IWAN_STAGE_CAP_FACTOR, for a restarted bank's start simulates
+        slower than the bank it comes from (docs/discovery.md, "Time")."""
+        t = time.process_time()
+        predict(self.trace, m.spec, m.params)
+        return max(IWAN_STAGE_CAP_FACTOR, 2000.0 * (time.process_time() - t) / self.cap)
+
+    def out_of_budget(self, where: str) -> str:
+        return (f"the time budget of {self.budget:.0f} s was spent {where}; the model is the last one that was "
                 f"fully judged (rerun with a larger --budget to go on)")
 
-    def heldout_of(m: ModelFit) -> float:
-        """The held-out error of ``m``: its prediction of the held-out part by its fit to the first."""
-        pf = fit(part, m.spec, m.effects, [m.params], sc_part)
-        return _heldout(trace, m.spec, pf.params, first) if pf.ok else float("inf")
+    def adopt_model(self, m: ModelFit, held: float) -> None:
+        """``m`` becomes the current model, with its held-out error."""
+        self.cur, self.cur_held = m, held
+        self.fits.append(m)
 
-    def model_cap_factor(m: ModelFit) -> float:
-        """The time cap for fits of ``m``'s kind, as a multiple of the search's: the cap is
-        2000 simulations of the start model, and a model with an Iwan bank and a table of c(x)
-        simulates several times slower (eval record 26: the restart of the idle elements was
-        abandoned at the start model's 5 s, 1.94 x noise in the end, 1.18 where it ran); at least
-        IWAN_STAGE_CAP_FACTOR, for a restarted bank's start simulates slower than the bank it
-        comes from (26 at the floor of 5 s: kept alone, abandoned beside another run)."""
-        t = time.process_time()
-        predict(trace, m.spec, m.params)
-        return max(IWAN_STAGE_CAP_FACTOR, 2000.0 * (time.process_time() - t) / cap)
+    # ---- the run
+    def run(self) -> Discovery:
+        for sweep in (1, 2):
+            if not self.sweep(sweep):
+                break
+        self.last_stages()
+        if self.every > 1:
+            self.to_whole_record()
+        return Discovery(trace=self.whole, noise=self.noise, start_model=self.spec.canonical, fits=self.fits,
+                         steps=self.steps, stop_reason=self.stop, seconds=time.perf_counter() - self.t_begin,
+                         heldout_start=float(self.trace.time[self.first]), removals=self.removals,
+                         refinements=self.refinements, searched_every=self.every)
 
-    def shape_fit(tr, sp, eff, starts, extra, own_thread=False, cap_factor=1.0):
-        return fit(tr, sp, eff, starts, sc_part if tr is part else sc, extra, held=_replaced(extra),
-                   own_thread=own_thread, cap_factor=cap_factor)
-
-    cur_held = _heldout(trace, spec, fit(part, spec, base_effects, [cur.params], sc_part).params, first)
-    say(f"{cur.model}: RMS error {cur.rms:.3g} m = {cur.rms / sigma:.2f} x noise ({cur.seconds:.1f} s)")
-    fits = [cur]
-    steps: list[Step] = []
-    removals: list[Removal] = []
-    stop = ""
-    refinements: list[Refinement] = []
-    rivals: dict = {}
-    for sweep in (1, 2):
-        fit_cap = cap if sweep == 1 else SECOND_SEARCH_CAP_SHARE * cap     # for the search of this sweep
-        effects_before = cur.effects
-        while True:
-            masks = regimes(trace, cur)
-            windows = disagreement(trace, cur, sigma, masks)
-            step = Step(model_before=cur.model, rms_before=cur.rms, heldout_before=cur_held, windows=windows,
-                        regimes=regime_table(trace, cur, sigma, masks), candidates=[])
-            steps.append(step)
-            if cur.rms <= CRITERIA.within_noise * sigma:
-                stop = f"the model reproduces the record within the noise (RMS error {cur.rms / sigma:.2f} x noise)"
-                break
-            if len([s for s in steps if s.effect]) >= max_steps:
-                stop = f"stopped after {max_steps} added effects"
-                break
-            if deadline is not None and time.perf_counter() > deadline:
-                budget_hit[0] = True
-                stop = out_of_budget(f"before step {len(steps)}")
-                break
-            sig = signatures(trace, cur, sigma, masks)
-            todo = [(e, m) for e in candidates(trace) if e not in cur.effects for m in _models_for(cur.spec, e, trace)]
-            if not todo:
-                stop = "every effect the experiment can reveal is in the model"
-                break
-            results = []
-            jobs = [(eff, new, candidate_starts(cur, new, sc, trace)) for eff, new in todo]
-            # the candidates are independent: side by side
-            candidate_fits = _side_by_side(
-                lambda job, alone, _effects=cur.effects, _rms=cur.rms: fit(
-                    trace, job[1], _effects + (job[0],), job[2], sc, own_thread=alone, baseline_rms=_rms), jobs)
-            for (eff, new, _), fm in zip(jobs, candidate_fits):
-                dk = fm.n_free - cur.n_free
-                bic = bic_change(cur, fm, n)
-                cr = CandidateResult(effect=eff, model=fm.model, added_parameters=dk, rms=fm.rms,
-                                     heldout_rms=float("nan"), bic_change=bic,
-                                     signature=float(sig.get(eff, {}).get("score", 0.0)),
-                                     signature_text=sig.get(eff, {}).get("text", ""), fit=fm)
-                if fm.ok:
-                    cr.accepted, cr.verdict = full_data_verdict(sigma, cur.rms, fm.rms, bic, dk)
-                    if cr.accepted and eff == "slack":
-                        cr.accepted, cr.verdict = _slack_acts(trace, cur.spec, fm, sigma, cr.verdict)
-                else:
-                    cr.accepted, cr.verdict = False, f"the fit failed: {fm.message}"
-                say(f"  + {eff}: RMS error {fm.rms / sigma:.2f} x noise with {dk} more parameter{'s' if dk != 1 else ''} "
-                    f"({fm.seconds:.1f} s)")
-                results.append(cr)
-            def table_candidate(cr):
-                # the damping candidate again with its second law, the table of c(x)
-                poly = cr.fit
-                tf = fit(trace, poly.spec, poly.effects, _damping_table_starts(trace, poly, sc), sc,
-                         extra=DAMPING_TABLE, held=_replaced(DAMPING_TABLE))
-                dk = tf.n_free - cur.n_free
-                bic = bic_change(cur, tf, n)
-                ct = CandidateResult(effect=cr.effect, model=tf.label, added_parameters=dk, rms=tf.rms,
-                                     heldout_rms=float("nan"), bic_change=bic, signature=cr.signature,
-                                     signature_text=cr.signature_text, fit=tf)
-                if tf.ok:
-                    ct.accepted, ct.verdict = full_data_verdict(sigma, cur.rms, tf.rms, bic, dk)
-                else:
-                    ct.accepted, ct.verdict = False, f"the fit failed: {tf.message}"
-                say(f"  + {cr.effect} (table of c(x)): RMS error {tf.rms / sigma:.2f} x noise with {dk} more "
-                    f"parameters ({tf.seconds:.1f} s)")
-                return ct
-
-            # a damping the polynomial c(x) follows only in part: the table of c(x)
-            for cr in [c for c in results if _partial_damping_gain(c, sigma, cur.rms)]:
-                results.append(table_candidate(cr))
-            # the rival laws' fits of the effect, for rival_law at the end
-            for effect in RIVAL_LAWS:
-                laws = {_law_of(c.fit.spec, effect): dict(c.fit.params) for c in results
-                        if c.effect == effect and c.fit is not None and c.fit.ok}
-                if laws:
-                    rivals[effect] = laws
-            # an effect with several laws (hysteresis: Bouc-Wen or Iwan, in a load test Kawabata too)
-            # competes with the best of them
-            best_of: dict[str, CandidateResult] = {}
-            for c in results:
-                b = best_of.get(c.effect)
-                if b is None or (c.fit.ok and (not b.fit.ok or c.bic_change < b.bic_change)):
-                    best_of[c.effect] = c
-            results = list(best_of.values())
-            # the held-out test for the best few that pass on the whole record
-            passing = sorted([c for c in results if c.accepted], key=lambda c: c.bic_change)
-
-            def part_fit(c, own_thread=False):
-                # the first part of the record, fitted from the whole record's optimum (as the current
-                # model's part fit is: both sides start alike, and each converges to its own optimum
-                # of the first part)
-                return fit(part, c.fit.spec, c.fit.effects, [c.fit.params], sc_part, extra=c.fit.shape,
-                           held=_replaced(c.fit.shape), own_thread=own_thread)
-
-            # the fits of the first few are needed in any case: side by side
-            ahead = passing[:heldout_candidates]
-            for c, pf in zip(ahead, _side_by_side(part_fit, ahead)):
-                c.part_fit = pf
-            def heldout_test(c, label=""):
-                # the candidate's prediction of the held-out part by its fit to the first part
-                if c.part_fit is None:
-                    c.part_fit = part_fit(c)
-                pf = c.part_fit
-                c.heldout_rms = _heldout(trace, c.fit.spec, pf.params, first) if pf.ok else float("inf")
-                say(f"  {c.effect}{label}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was "
-                    f"{cur_held / sigma:.2f})")
-                if c.effect == "slack" and c.added_parameters == 0 and not regimes(trace, c.fit)["slack"][first:].any():
-                    # slack adds no parameter to overfit with, and a record that goes slack only in
-                    # its first part (a release from high up, decaying) leaves nothing for the
-                    # held-out part to judge: it is asked only where the measurement goes slack
-                    c.verdict += ("; held-out test not asked: the record goes slack only in the part the fit "
-                                  "sees, and slack adds no parameter")
-                    return
-                ok, why = heldout_verdict(sigma, cur_held, c.heldout_rms, cur.rms, c.rms)
-                c.accepted = ok
-                c.verdict = f"{c.verdict}; {why}"
-
-            tested = 0
-            for c in passing:
-                if tested >= heldout_candidates and any(x.accepted for x in passing[:tested]):
-                    break
-                tested += 1
-                heldout_test(c)
-            for c in passing[tested:]:
-                c.accepted = False
-                c.verdict += "; not tested on the held-out part (a better candidate was)"
-            # a polynomial c(x) that earns its place on the whole record and loses it on the held-out
-            # part: fitted to the first part, its x^2 term runs on beyond the displacements that part
-            # reaches, where a damping that levels off does not (the generator's Gaussian c(x) beside
-            # the Iwan bank, forced: 3.64 -> 1.72 x noise on the whole record, held-out 7.67 -> 8.75).
-            # The table of c(x) holds its last knots there (_knots_unseen): it is fitted and tested
-            # in the polynomial's place
-            refused = None if any(c.accepted for c in results) else next(
-                (c for c in results if c.effect == "nonlinear_damping" and c.fit is not None and c.fit.ok
-                 and math.isfinite(c.heldout_rms) and not set(DAMPING_TABLE) <= set(c.fit.shape)
-                 and full_data_verdict(sigma, cur.rms, c.rms, c.bic_change, c.added_parameters)[0]), None)
-            if refused is not None:
-                ct = table_candidate(refused)
-                if ct.accepted:
-                    heldout_test(ct, " (table of c(x))")
-                results.append(ct)
-            results.sort(key=lambda c: (not c.accepted, c.bic_change))
-            step.candidates = results
-            if budget_hit[0]:
-                for c in results:
-                    c.accepted = False
-                    c.verdict += "; not judged to the end: the time budget ran out during this step"
-                    c.forget_curves()
-                stop = out_of_budget(f"while the candidates of step {len(steps)} were fitted")
-                break
-            win = results[0]
-            for c in results:
-                say(f"  {c.effect}: {'earns' if c.accepted and c is win else 'does not earn'} its parameters: {c.verdict}")
-            if not win.accepted:
-                stop = "no candidate earns its parameters"
-                refit = _refit_without_slack(trace, cur, results, sigma)
-                for c in results:
-                    c.forget_curves()
-                if refit is not None:
-                    # the same model, better fitted: the last stages start from it
-                    say(f"kept the refit of the slack candidate, which never goes slack: the same model "
-                        f"{cur.model}, RMS error {cur.rms / sigma:.2f} -> {refit.rms / sigma:.2f} x noise")
-                    stop += (f"; the slack candidate never went slack, and its fit, the same model with other "
-                             f"values, is kept: RMS error {cur.rms / sigma:.2f} -> {refit.rms / sigma:.2f} x noise")
-                    cur = refit
-                    cur_held = heldout_of(cur)
-                    fits.append(cur)
-                break
-            step.effect = win.effect
-            if win.effect == "slack":
-                win.signature_text = _slack_seen_by(trace, win)
-            step.evidence = _evidence(win, windows)
-            step.rms_after = win.rms
-            step.model_after = win.model
-            say(f"added {win.effect}: RMS error {cur.rms / sigma:.2f} -> {win.rms / sigma:.2f} x noise")
-            cur, cur_held = win.fit, win.heldout_rms
-            if cur.shape:                           # a law with its shape terms (the table of c(x))
-                shape_free = tuple(dict.fromkeys(shape_free + tuple(cur.shape)))
-                shape_held = _replaced(shape_free)
-            fits.append(cur)
-            for c in results:                       # fitted curves of the winner only
-                if c is not win:
-                    c.forget_curves()
-            # does an effect added earlier still earn its parameters next to the new one?
-            for e in [x for x in cur.effects if x not in base_effects and x != win.effect]:
-                red = _without(cur.spec, e).for_experiment(trace.experiment)
-                rf = fit(trace, red, tuple(x for x in cur.effects if x != e), _reduced_starts(cur, red, sc), sc)
-                if not rf.ok:
-                    continue
-                bic = bic_change(rf, cur, n)
-                keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
-                if keep:
-                    continue
-                say(f"removed {e}: without it the RMS error is {rf.rms / sigma:.2f} x noise ({why})")
-                removals.append(Removal(e, cur.model, rf.model, cur.rms, rf.rms,
-                                        f"next to {win.effect} it no longer earns its parameters: {why}"))
-                cur = rf
-                cur_held = heldout_of(rf)
-                fits.append(cur)
-                break
-        fit_cap = cap
-        refined_effects = {r.effect for r in refinements if r.accepted}
-        if budget_hit[0] or (sweep == 2 and cur.effects == effects_before
-                             and not _shape_groups(cur, skip=refined_effects)):
-            break
+    def sweep(self, sweep: int) -> bool:
+        """The search for effects step by step, then the shapes of the named laws. True where a
+        shape was kept in the first sweep: a law of the wrong shape can hide a further effect
+        behind its own misfit (a drag-damped record with slack was named nonlinear damping alone at
+        3-12 x noise), so the search runs once more from the refined model, its shape terms free."""
+        self.fit_cap = self.cap if sweep == 1 else SECOND_SEARCH_CAP_SHARE * self.cap
+        effects_before = self.cur.effects
+        while self.step():
+            pass
+        self.fit_cap = self.cap
+        refined_effects = {r.effect for r in self.refinements if r.accepted}
+        if self.budget_hit or (sweep == 2 and self.cur.effects == effects_before
+                               and not _shape_groups(self.cur, skip=refined_effects)):
+            return False
         # (in the second sweep with no new effect: the laws not refined yet, from the refined model;
-        # a Bouc-Wen shape won the first round of a record with a saturating damping as well, and
-        # the damping table, tried beside it from the unrefined model, could not show its worth)
-        refined, refined_held, refs = refine_shapes(trace, part, first, cur, cur_held, sigma, shape_fit, sc, say,
-                                                    skip=refined_effects)
-        refinements += refs
-        if budget_hit[0]:
+        # docs/discovery.md, "The search, step by step")
+        refined, refined_held, refs = refine_shapes(self.trace, self.part, self.first, self.cur, self.cur_held,
+                                                    self.sigma, self.shape_fit, self.sc, self.say, skip=refined_effects)
+        self.refinements += refs
+        if self.budget_hit:
             _not_kept_for_budget(refs)
-            stop += "; " + out_of_budget("while the shapes of the laws were refined")
-            break
-        if refined is cur:
-            break
-        fits.append(refined)
-        cur = refined
-        if sweep == 2 or cur.rms <= CRITERIA.within_noise * sigma:
+            self.stop += "; " + self.out_of_budget("while the shapes of the laws were refined")
+            return False
+        if refined is self.cur:
+            return False
+        self.fits.append(refined)
+        self.cur = refined
+        if sweep == 2 or self.cur.rms <= CRITERIA.within_noise * self.sigma:
             if math.isfinite(refined_held):
-                cur_held = refined_held
-            break
-        # a law of the wrong shape can hide a further effect behind its own misfit (a drag-damped
-        # record with slack was named nonlinear damping alone at 3-12 x noise): search once more
-        # from the refined model, its shape terms free in every fit
-        shape_free = tuple(dict.fromkeys(shape_free + tuple(k for r in refs if r.accepted for k in r.parameters)))
-        shape_held = _replaced(shape_free)
+                self.cur_held = refined_held
+            return False
+        self.free_shapes(tuple(k for r in refs if r.accepted for k in r.parameters))
         if not math.isfinite(refined_held):
             # (where refine_shapes asked, its fit of the first part was this one: same terms, same start)
-            refined_held = heldout_of(cur)
-        cur_held = refined_held
-        say(f"searching again from the refined model ({' '.join(shape_free)} free): RMS error "
-            f"{cur.rms / sigma:.2f} x noise")
-    def adopt(result, where: str) -> bool:
-        """A last stage's (model, held-out error, record): kept on record, and the model taken
-        unless the time budget ran out during the stage."""
-        nonlocal cur, cur_held, stop
-        new, held, rec = result
-        if rec is not None and budget_hit[0] and rec.accepted:
-            _not_kept_for_budget([rec])
-            new = cur
-            stop += "; " + out_of_budget(where)
-        if rec is not None:
-            refinements.append(rec)
-        if new is cur:
-            return False
-        cur, cur_held = new, held
-        fits.append(cur)
+            refined_held = self.heldout_of(self.cur)
+        self.cur_held = refined_held
+        self.say(f"searching again from the refined model ({' '.join(self.shape_free)} free): RMS error "
+                 f"{self.cur.rms / self.sigma:.2f} x noise")
         return True
 
-    def reshape(skip, cap_factor: float = 1.0) -> None:
+    def free_shapes(self, terms: tuple) -> None:
+        """Shape terms kept free in every later fit, the terms they replace held."""
+        self.shape_free = tuple(dict.fromkeys(self.shape_free + tuple(terms)))
+        self.shape_held = _replaced(self.shape_free)
+
+    # ---- one step of the search for effects: propose, judge, adopt, re-test
+    def step(self) -> bool:
+        """One step: where the model disagrees, each candidate effect fitted and judged, the winner
+        added and the effects named before it re-tested beside it. False where the search stops."""
+        cur, sigma, trace = self.cur, self.sigma, self.trace
+        masks = regimes(trace, cur)
+        windows = disagreement(trace, cur, sigma, masks)
+        step = Step(model_before=cur.model, rms_before=cur.rms, heldout_before=self.cur_held, windows=windows,
+                    regimes=regime_table(trace, cur, sigma, masks), candidates=[])
+        self.steps.append(step)
+        if cur.rms <= CRITERIA.within_noise * sigma:
+            self.stop = f"the model reproduces the record within the noise (RMS error {cur.rms / sigma:.2f} x noise)"
+            return False
+        if len([s for s in self.steps if s.effect]) >= self.max_steps:
+            self.stop = f"stopped after {self.max_steps} added effects"
+            return False
+        if self.deadline is not None and time.perf_counter() > self.deadline:
+            self.budget_hit = True
+            self.stop = self.out_of_budget(f"before step {len(self.steps)}")
+            return False
+        sig = signatures(trace, cur, sigma, masks)
+        todo = [(e, m) for e in candidates(trace) if e not in cur.effects for m in _models_for(cur.spec, e, trace)]
+        if not todo:
+            self.stop = "every effect the experiment can reveal is in the model"
+            return False
+        results = self.judged_candidates(todo, sig)
+        step.candidates = results
+        if self.budget_hit:
+            for c in results:
+                c.accepted = False
+                c.verdict += "; not judged to the end: the time budget ran out during this step"
+                c.forget_curves()
+            self.stop = self.out_of_budget(f"while the candidates of step {len(self.steps)} were fitted")
+            return False
+        win = results[0]
+        for c in results:
+            self.say(f"  {c.effect}: {'earns' if c.accepted and c is win else 'does not earn'} its parameters: "
+                     f"{c.verdict}")
+        if not win.accepted:
+            self.stop_without_winner(results)
+            return False
+        self.add(win, results, step, windows)
+        self.retest_named(win)
+        return True
+
+    def judged_candidates(self, todo: list, sig: dict) -> list:
+        """The candidates (effect, model) fitted and judged, best first: on the whole record, the
+        damping table where the polynomial closes part of the gap, the best law of each effect, then
+        the held-out test for the best few that pass."""
+        cur, sigma = self.cur, self.sigma
+        results = self.fit_candidates(todo, sig)
+        # a damping the polynomial c(x) follows only in part: the table of c(x)
+        for cr in [c for c in results if _partial_damping_gain(c, sigma, cur.rms)]:
+            results.append(self.table_candidate(cr))
+        # the rival laws' fits of the effect, for rival_law at the end
+        for effect in RIVAL_LAWS:
+            laws = {_law_of(c.fit.spec, effect): dict(c.fit.params) for c in results
+                    if c.effect == effect and c.fit is not None and c.fit.ok}
+            if laws:
+                self.rivals[effect] = laws
+        # an effect with several laws (hysteresis: Bouc-Wen or Iwan, in a load test Kawabata too)
+        # competes with the best of them
+        best_of: dict[str, CandidateResult] = {}
+        for c in results:
+            b = best_of.get(c.effect)
+            if b is None or (c.fit.ok and (not b.fit.ok or c.bic_change < b.bic_change)):
+                best_of[c.effect] = c
+        results = list(best_of.values())
+        self.heldout_tests(sorted([c for c in results if c.accepted], key=lambda c: c.bic_change))
+        # a polynomial c(x) that earns its place on the whole record and loses it on the held-out
+        # part (its x^2 term runs on beyond the displacements the first part reaches): the table of
+        # c(x), whose knots beyond that reach are held (_knots_unseen), is fitted and tested in its place
+        refused = None if any(c.accepted for c in results) else next(
+            (c for c in results if c.effect == "nonlinear_damping" and c.fit is not None and c.fit.ok
+             and math.isfinite(c.heldout_rms) and not set(DAMPING_TABLE) <= set(c.fit.shape)
+             and full_data_verdict(sigma, cur.rms, c.rms, c.bic_change, c.added_parameters)[0]), None)
+        if refused is not None:
+            ct = self.table_candidate(refused)
+            if ct.accepted:
+                self.heldout_test(ct, " (table of c(x))")
+            results.append(ct)
+        results.sort(key=lambda c: (not c.accepted, c.bic_change))
+        return results
+
+    def fit_candidates(self, todo: list, sig: dict) -> list:
+        """Each candidate model fitted (side by side: they are independent) and judged on the whole
+        record."""
+        cur, sigma = self.cur, self.sigma
+        jobs = [(eff, new, candidate_starts(cur, new, self.sc, self.trace)) for eff, new in todo]
+        candidate_fits = _side_by_side(
+            lambda job, alone, _effects=cur.effects, _rms=cur.rms: self.fit(
+                self.trace, job[1], _effects + (job[0],), job[2], self.sc, own_thread=alone, baseline_rms=_rms), jobs)
+        results = []
+        for (eff, new, _), fm in zip(jobs, candidate_fits):
+            dk = fm.n_free - cur.n_free
+            cr = CandidateResult(effect=eff, model=fm.model, added_parameters=dk, rms=fm.rms,
+                                 heldout_rms=float("nan"), bic_change=bic_change(cur, fm, self.n),
+                                 signature=float(sig.get(eff, {}).get("score", 0.0)),
+                                 signature_text=sig.get(eff, {}).get("text", ""), fit=fm)
+            if fm.ok:
+                cr.accepted, cr.verdict = full_data_verdict(sigma, cur.rms, fm.rms, cr.bic_change, dk)
+                if cr.accepted and eff == "slack":
+                    cr.accepted, cr.verdict = _slack_acts(self.trace, cur.spec, fm, sigma, cr.verdict)
+            else:
+                cr.accepted, cr.verdict = False, f"the fit failed: {fm.message}"
+            self.say(f"  + {eff}: RMS error {fm.rms / sigma:.2f} x noise with {dk} more parameter"
+                     f"{'s' if dk != 1 else ''} ({fm.seconds:.1f} s)")
+            results.append(cr)
+        return results
+
+    def table_candidate(self, cr: CandidateResult) -> CandidateResult:
+        """The damping candidate again with its second law, the table of c(x), judged on the whole record."""
+        cur, sigma, poly = self.cur, self.sigma, cr.fit
+        tf = self.fit(self.trace, poly.spec, poly.effects, _damping_table_starts(self.trace, poly, self.sc), self.sc,
+                      extra=DAMPING_TABLE, held=_replaced(DAMPING_TABLE))
+        dk = tf.n_free - cur.n_free
+        ct = CandidateResult(effect=cr.effect, model=tf.label, added_parameters=dk, rms=tf.rms,
+                             heldout_rms=float("nan"), bic_change=bic_change(cur, tf, self.n), signature=cr.signature,
+                             signature_text=cr.signature_text, fit=tf)
+        if tf.ok:
+            ct.accepted, ct.verdict = full_data_verdict(sigma, cur.rms, tf.rms, ct.bic_change, dk)
+        else:
+            ct.accepted, ct.verdict = False, f"the fit failed: {tf.message}"
+        self.say(f"  + {cr.effect} (table of c(x)): RMS error {tf.rms / sigma:.2f} x noise with {dk} more "
+                 f"parameters ({tf.seconds:.1f} s)")
+        return ct
+
+    def part_fit(self, c: CandidateResult, own_thread: bool = False) -> ModelFit:
+        """The first part of the record, fitted from the whole record's optimum (as the current
+        model's part fit is: both sides start alike, and each converges to its own optimum)."""
+        return self.fit(self.part, c.fit.spec, c.fit.effects, [c.fit.params], self.sc_part, extra=c.fit.shape,
+                        held=_replaced(c.fit.shape), own_thread=own_thread)
+
+    def heldout_tests(self, passing: list) -> None:
+        """The held-out test, best first, for up to ``heldout_candidates`` of the candidates that pass
+        on the whole record (more while none of those passes it); the rest are not tested."""
+        ahead = passing[:self.heldout_candidates]
+        for c, pf in zip(ahead, _side_by_side(self.part_fit, ahead)):   # needed in any case: side by side
+            c.part_fit = pf
+        tested = 0
+        for c in passing:
+            if tested >= self.heldout_candidates and any(x.accepted for x in passing[:tested]):
+                break
+            tested += 1
+            self.heldout_test(c)
+        for c in passing[tested:]:
+            c.accepted = False
+            c.verdict += "; not tested on the held-out part (a better candidate was)"
+
+    def heldout_test(self, c: CandidateResult, label: str = "") -> None:
+        """The candidate's prediction of the held-out part by its fit to the first part, judged."""
+        if c.part_fit is None:
+            c.part_fit = self.part_fit(c)
+        pf, sigma = c.part_fit, self.sigma
+        c.heldout_rms = _heldout(self.trace, c.fit.spec, pf.params, self.first) if pf.ok else float("inf")
+        self.say(f"  {c.effect}{label}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was "
+                 f"{self.cur_held / sigma:.2f})")
+        if (c.effect == "slack" and c.added_parameters == 0
+                and not regimes(self.trace, c.fit)["slack"][self.first:].any()):
+            # slack adds no parameter to overfit with, and a record that goes slack only in its first
+            # part leaves nothing for the held-out part to judge: asked only where it goes slack
+            c.verdict += ("; held-out test not asked: the record goes slack only in the part the fit "
+                          "sees, and slack adds no parameter")
+            return
+        ok, why = heldout_verdict(sigma, self.cur_held, c.heldout_rms, self.cur.rms, c.rms)
+        c.accepted = ok
+        c.verdict = f"{c.verdict}; {why}"
+
+    def stop_without_winner(self, results: list) -> None:
+        """No candidate earned its place: the search stops; a slack candidate's refit that never goes
+        slack and fits lower is kept as the current model, better fitted."""
+        cur, sigma = self.cur, self.sigma
+        self.stop = "no candidate earns its parameters"
+        refit = _refit_without_slack(self.trace, cur, results, sigma)
+        for c in results:
+            c.forget_curves()
+        if refit is None:
+            return
+        # the same model, better fitted: the last stages start from it
+        self.say(f"kept the refit of the slack candidate, which never goes slack: the same model "
+                 f"{cur.model}, RMS error {cur.rms / sigma:.2f} -> {refit.rms / sigma:.2f} x noise")
+        self.stop += (f"; the slack candidate never went slack, and its fit, the same model with other "
+                      f"values, is kept: RMS error {cur.rms / sigma:.2f} -> {refit.rms / sigma:.2f} x noise")
+        self.adopt_model(refit, self.heldout_of(refit))
+
+    def add(self, win: CandidateResult, results: list, step: Step, windows: list) -> None:
+        """The winner's effect added, with its evidence; the other candidates' curves dropped."""
+        step.effect = win.effect
+        if win.effect == "slack":
+            win.signature_text = _slack_seen_by(self.trace, win)
+        step.evidence = _evidence(win, windows)
+        step.rms_after = win.rms
+        step.model_after = win.model
+        self.say(f"added {win.effect}: RMS error {self.cur.rms / self.sigma:.2f} -> {win.rms / self.sigma:.2f} x noise")
+        self.cur, self.cur_held = win.fit, win.heldout_rms
+        if self.cur.shape:                           # a law with its shape terms (the table of c(x))
+            self.free_shapes(self.cur.shape)
+        self.fits.append(self.cur)
+        for c in results:                            # fitted curves of the winner only
+            if c is not win:
+                c.forget_curves()
+
+    def retest_named(self, win: CandidateResult) -> None:
+        """Does an effect added earlier still earn its parameters next to the new one (the whole
+        record's rule)? The first that does not is removed."""
+        cur, sigma = self.cur, self.sigma
+        for e in [x for x in cur.effects if x not in self.base_effects and x != win.effect]:
+            red = _without(cur.spec, e).for_experiment(self.trace.experiment)
+            rf = self.fit(self.trace, red, tuple(x for x in cur.effects if x != e), _reduced_starts(cur, red, self.sc),
+                          self.sc)
+            if not rf.ok:
+                continue
+            bic = bic_change(rf, cur, self.n)
+            keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
+            if keep:
+                continue
+            self.say(f"removed {e}: without it the RMS error is {rf.rms / sigma:.2f} x noise ({why})")
+            self.removals.append(Removal(e, cur.model, rf.model, cur.rms, rf.rms,
+                                         f"next to {win.effect} it no longer earns its parameters: {why}"))
+            self.adopt_model(rf, self.heldout_of(rf))
+            break
+
+    # ---- the last stages: the Iwan bank, the rival law, the whole record
+    def last_stages(self) -> None:
+        """The bank at its best before its rival law is fitted in its place (the rival is judged
+        against the bank its restart and a finer bank make of it), then the rival law, then the
+        bank's stages again where the rival law put a bank in."""
+        if self.cur.spec.hysteresis == "iwan":
+            self.iwan_stages()
+        swapped = False
+        if not self.budget_hit and "hysteresis" in self.rivals:
+            swapped = self.swap_rival()
+        if swapped and self.cur.spec.hysteresis == "iwan":
+            self.iwan_stages()
+
+    def adopt(self, result, where: str) -> bool:
+        """A last stage's (model, held-out error, record): kept on record, and the model taken
+        unless the time budget ran out during the stage."""
+        new, held, rec = result
+        if rec is not None and self.budget_hit and rec.accepted:
+            _not_kept_for_budget([rec])
+            new = self.cur
+            self.stop += "; " + self.out_of_budget(where)
+        if rec is not None:
+            self.refinements.append(rec)
+        if new is self.cur:
+            return False
+        self.adopt_model(new, held)
+        return True
+
+    def reshape(self, skip, cap_factor: float = 1.0) -> None:
         """The shape groups of refine_shapes from the current model, the effects in ``skip`` left out;
         the result taken unless the time budget ran out during the stage."""
-        nonlocal cur, cur_held
         refined, refined_held, refs = refine_shapes(
-            trace, part, first, cur, cur_held, sigma,
-            lambda tr, sp, eff, starts, extra, own_thread=False: shape_fit(tr, sp, eff, starts, extra, own_thread,
-                                                                           cap_factor),
-            sc, say, skip=skip)
-        if budget_hit[0]:
+            self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
+            lambda tr, sp, eff, starts, extra, own_thread=False: self.shape_fit(tr, sp, eff, starts, extra, own_thread,
+                                                                                cap_factor),
+            self.sc, self.say, skip=skip)
+        if self.budget_hit:
             _not_kept_for_budget(refs)
-            refined = cur
-        refinements.extend(refs)
-        if refined is not cur:
-            fits.append(refined)
-            cur = refined
+            refined = self.cur
+        self.refinements.extend(refs)
+        if refined is not self.cur:
+            self.fits.append(refined)
+            self.cur = refined
             if math.isfinite(refined_held):
-                cur_held = refined_held
+                self.cur_held = refined_held
 
-    def iwan_stages() -> None:
+    def iwan_stages(self) -> None:
         """An Iwan bank's last stages: its idle elements restarted, then a finer bank (each a no-op
-        for another law), where the bank misses the record by CRITERIA.iwan_stages_gap or more. Where either
-        is kept and the bank still misses the record so, the other laws' shape groups are tried
-        again beside the new bank, its terms free (eval record 27, forced Iwan + Gaussian damping:
-        the table of c(x) was refused beside a bank of three live elements, 33.62 -> 32.13 x noise
-        and a held-out part that got worse; beside the sixteen of the finer bank it takes the model
-        from 2.54 to 1.17 x noise, held-out 3.68 -> 1.77)."""
-        nonlocal shape_free, shape_held
-        if _gap(cur.rms, sigma) < CRITERIA.iwan_stages_gap * sigma:
+        for another law), where the bank misses the record by CRITERIA.iwan_stages_gap or more.
+        Where either is kept and the bank still misses the record so, the other laws' shape groups
+        are tried again beside the new bank, its terms free (docs/discovery.md, "The search")."""
+        sigma = self.sigma
+        if _gap(self.cur.rms, sigma) < CRITERIA.iwan_stages_gap * sigma:
             return
         kept = False
         for stage, where in ((restart_idle_elements, "while the idle Iwan elements were restarted"),
                              (finer_bank, "while the Iwan bank was made finer")):
-            if not budget_hit[0]:
-                mf = model_cap_factor(cur)
-                kept |= adopt(stage(trace, part, first, cur, cur_held, sigma,
-                                    lambda tr, sp, eff, starts, extra=(), cap_factor=1.0, **kw: shape_fit(
-                                        tr, sp, eff, starts, extra, cap_factor=cap_factor * mf, **kw), say), where)
-        if not kept or budget_hit[0] or _gap(cur.rms, sigma) < CRITERIA.iwan_stages_gap * sigma:
+            if not self.budget_hit:
+                mf = self.model_cap_factor(self.cur)
+                kept |= self.adopt(stage(self.trace, self.part, self.first, self.cur, self.cur_held, sigma,
+                                         lambda tr, sp, eff, starts, extra=(), cap_factor=1.0, _mf=mf, **kw:
+                                         self.shape_fit(tr, sp, eff, starts, extra, cap_factor=cap_factor * _mf, **kw),
+                                         self.say), where)
+        if not kept or self.budget_hit or _gap(self.cur.rms, sigma) < CRITERIA.iwan_stages_gap * sigma:
             return
-        shape_free = tuple(dict.fromkeys(shape_free + tuple(cur.shape)))
-        shape_held = _replaced(shape_free)
-        reshape({r.effect for r in refinements if r.accepted} | {"hysteresis"},
-                bank_cap_factor(sum(1 for k in IWAN_K if k in cur.free)))
+        self.free_shapes(tuple(self.cur.shape))
+        self.reshape({r.effect for r in self.refinements if r.accepted} | {"hysteresis"},
+                     bank_cap_factor(sum(1 for k in IWAN_K if k in self.cur.free)))
 
-    # the bank at its best before its rival law is fitted in its place: the rival is judged against
-    # the bank its restart and a finer bank make of it, not against eight elements with most idle
-    if cur.spec.hysteresis == "iwan":
-        iwan_stages()
-    swapped = False
-    if not budget_hit[0] and "hysteresis" in rivals:
-        added = [s.effect for s in steps if s.effect and s.effect in cur.effects]
-        swapped = adopt(rival_law(
-            trace, part, first, cur, cur_held, sigma,
-            lambda tr, sp, eff, starts, baseline_rms=None, cap_factor=1.0: fit(
-                tr, sp, eff, starts, sc_part if tr is part else sc, baseline_rms=baseline_rms, cap_factor=cap_factor),
-            rivals["hysteresis"], added, say,
-            elastic_reshaped=any(r.accepted and r.effect == "nonlinear_stiffness" for r in refinements)),
+    def swap_rival(self) -> bool:
+        """The hysteresis law fitted again with its rival in its place (rival_law), and the new law's
+        own shape terms (the Iwan bank's slip strains, Bouc-Wen's exponent) where it is kept."""
+        added = [s.effect for s in self.steps if s.effect and s.effect in self.cur.effects]
+        swapped = self.adopt(rival_law(
+            self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
+            lambda tr, sp, eff, starts, baseline_rms=None, cap_factor=1.0: self.fit(
+                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms,
+                cap_factor=cap_factor),
+            self.rivals["hysteresis"], added, self.say,
+            elastic_reshaped=any(r.accepted and r.effect == "nonlinear_stiffness" for r in self.refinements)),
             "while the rival law was fitted")
         if swapped:
-            # the new law's own shape terms (the Iwan bank's slip strains, Bouc-Wen's exponent)
-            reshape(set(cur.effects) - {"hysteresis"})
-    if swapped and cur.spec.hysteresis == "iwan":
-        iwan_stages()
-    if every > 1:
-        fitted = None
-        if not budget_hit[0]:
-            say(f"fitting {cur.label} to the whole record")
-            fitted = fit_model(whole, cur.spec, cur.effects, [cur.params], _scales(whole), time_cap=every * cap,
-                               extra=cur.shape, held=shape_held + _replaced(cur.shape), deadline=deadline,
+            self.reshape(set(self.cur.effects) - {"hysteresis"})
+        return swapped
+
+    def to_whole_record(self) -> None:
+        """A search on every k-th sample: the final model fitted to the whole record (from the
+        searched optimum, WHOLE_RECORD_ITERATIONS), every error carried to the whole record."""
+        cur, fitted = self.cur, None
+        if not self.budget_hit:
+            self.say(f"fitting {cur.label} to the whole record")
+            fitted = fit_model(self.whole, cur.spec, cur.effects, [cur.params], _scales(self.whole),
+                               time_cap=self.every * self.cap, extra=cur.shape,
+                               held=self.shape_held + _replaced(cur.shape), deadline=self.deadline,
                                max_iterations=WHOLE_RECORD_ITERATIONS)
             if not fitted.ok:
-                stop += (f"; the fit to the whole record failed ({fitted.message}): the searched record's values "
-                         "are kept")
+                self.stop += (f"; the fit to the whole record failed ({fitted.message}): the searched record's "
+                              "values are kept")
                 fitted = None
-        fits = _on_whole_record(whole, fits, steps, removals, fitted)
-        say(f"{fits[-1].model} on the whole record: RMS error {fits[-1].rms / sigma:.2f} x noise")
-    return Discovery(trace=whole, noise=noise, start_model=spec.canonical, fits=fits, steps=steps, stop_reason=stop,
-                     seconds=time.perf_counter() - t_begin, heldout_start=float(trace.time[first]),
-                     removals=removals, refinements=refinements, searched_every=every)
+        self.fits = _on_whole_record(self.whole, self.fits, self.steps, self.removals, fitted)
+        self.say(f"{self.fits[-1].model} on the whole record: RMS error {self.fits[-1].rms / self.sigma:.2f} x noise")
 
 
 def _on_whole_record(whole: Trace, fits: list, steps: list, removals: list, fitted: ModelFit | None) -> list:
