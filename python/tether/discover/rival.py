@@ -84,8 +84,7 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
               None]
     if elastic_reshaped:
         # tether.fit's estimate beside the power term kept: the rival's terms and the cubic's
-        # from the data, the power term's exponent and reference strain held (14, a load test of
-        # Iwan friction: this start is 1.07 x noise before the fit, the others 2.9 x and worse)
+        # from the data, the power term's exponent and reference strain held (docs/discovery.md)
         from ..fit import initial_estimate
         power = {k: float(cur.params[k]) for k in ("pow_F", "pow_eps", "pow_n") if k in cur.params}
         starts.insert(3, {k: v for k, v in initial_estimate([trace], new, fixed=power).items()
@@ -221,8 +220,7 @@ IWAN_SPLIT = 0.15
 def bank_cap_factor(elements: int) -> float:
     """The time caps of a fit that carries an Iwan bank of ``elements`` elements, as a multiple of the
     search's (whose fits carry IWAN_FIT_ELEMENTS): each simulation carries the bank, each Jacobian a
-    column per element (eval record 27 on every 5th sample: the finer bank's fit of sixteen elements
-    needs 48 s on two threads, and was abandoned at the search's cap, 63 s of CPU time)."""
+    column per element (docs/discovery.md, "Time")."""
     return max(1.0, elements / len(IWAN_K_FIT))
 
 

@@ -30,9 +30,8 @@ def _samples_of(trace: Trace, index) -> Trace:
 
 
 #: a record whose simulation runs over more samples than this is searched on every k-th sample,
-#: and its final model fitted again to the whole record. A simulation's cost grows with its
-#: samples (eval record 27, forced at 1000 Hz: 56 ms for its 16 101 samples, 16 ms for every
-#: fifth); on the whole record that record's 900 s budget ran out before the last stages
+#: and its final model fitted again to the whole record: a simulation's cost grows with its
+#: samples (docs/discovery.md, "Time")
 SEARCH_SAMPLES = 4000
 
 
