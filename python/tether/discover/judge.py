@@ -1,7 +1,8 @@
 """The judge: every threshold of acceptance in one place (Criteria), the BIC change computed once
 (bic_change), and the rules side by side: an effect on the whole record (full_data_verdict) and on
-the held-out part (heldout_verdict), slack that must act (_slack_acts), a shape or a law
-(_shape_judged), and when the damping table is tried (_partial_damping_gain). docs/discovery.md,
+the held-out part (heldout_verdict), slack that must act (_slack_acts), a shape (_shape_judged), a
+rival law (_law_judged), and when the damping table is tried (_partial_damping_gain). (The Iwan
+bank's restart keeps the same model with the same terms, on a lower error alone: rival.py.) docs/discovery.md,
 "The criteria, and why", tells the measurements behind each value."""
 
 from __future__ import annotations
@@ -184,3 +185,23 @@ def _shape_judged(rms_before: float, rms: float, bic: float, held_before: float,
         f"held-out {held_before / sigma:.2f} -> {held / sigma:.2f} x noise" if math.isfinite(held) else
         f"held-out test not asked: the model predicts the held-out part {held_before / rms_before:.0f} times "
         f"worse than it fits the whole record, a test that cannot judge a shape")
+
+
+def _law_judged(rms_before: float, rms: float, bic: float, held_before: float, held: float, sigma: float,
+                law: str) -> tuple[bool, str]:
+    """The verdict on an effect's law replaced by its rival (rival_law): kept on a lower BIC and
+    error on the whole record and, where the held-out prediction can judge (_heldout_judges), a
+    prediction of the held-out part no worse. ``held``: the rival's held-out error, NaN where the
+    whole record refused it (its fit of the first part not run); ``law``: the law in place."""
+    if not (bic < 0.0 and rms < rms_before):
+        return False, (f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC changes by {bic:+.1f}: "
+                       f"the {law} law stays")
+    judges = _heldout_judges(held_before, rms_before)
+    if judges and not held <= held_before:
+        return False, (f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC {bic:+.0f}, but the "
+                       f"held-out part gets worse: {held_before / sigma:.2f} -> {held / sigma:.2f} x noise")
+    return True, (f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC {bic:+.0f}, held-out "
+                  f"{held_before / sigma:.2f} -> {held / sigma:.2f} x noise"
+                  + ("" if judges else
+                     f" (not judged on it: the model predicts the held-out part {held_before / rms_before:.0f} "
+                     f"times worse than it fits the whole record)"))

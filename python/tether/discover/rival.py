@@ -12,7 +12,7 @@ import numpy as np
 from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K, IWAN_K_FIT
 from ..traces import Trace
 from .fitting import _heldout, ModelFit
-from .judge import CRITERIA, _heldout_judges, _shape_judged, bic_change
+from .judge import CRITERIA, _heldout_judges, _law_judged, _shape_judged, bic_change
 from .laws import RIVAL_LAWS
 from .records import Refinement
 
@@ -100,23 +100,11 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
         say(f"  law of {effect}, {law} -> {other}: not kept: {r.verdict}")
         return cur, cur_held, r
     bic = bic_change(cur, fm, n)
-    held, verdict = float("nan"), ""
-    if not (bic < 0.0 and fm.rms < cur.rms):
-        verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC changes by {bic:+.1f}: "
-                   f"the {law} law stays")
-    else:
+    held = float("nan")
+    if bic < 0.0 and fm.rms < cur.rms:
         pf = fit(part, new, cur.effects, [fm.params], cap_factor=factor)
         held = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
-        if _heldout_judges(cur_held, cur.rms) and not held <= cur_held:
-            verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC {bic:+.0f}, but the "
-                       f"held-out part gets worse: {cur_held / sigma:.2f} -> {held / sigma:.2f} x noise")
-    ok = not verdict
-    if ok:
-        verdict = (f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC {bic:+.0f}, held-out "
-                   f"{cur_held / sigma:.2f} -> {held / sigma:.2f} x noise"
-                   + ("" if _heldout_judges(cur_held, cur.rms) else
-                      f" (not judged on it: the model predicts the held-out part {cur_held / cur.rms:.0f} times "
-                      f"worse than it fits the whole record)"))
+    ok, verdict = _law_judged(cur.rms, fm.rms, bic, cur_held, held, sigma, law)
     r = Refinement(effect, terms, cur.rms, fm.rms, cur_held, held, bic, ok, verdict,
                    {k: float(fm.params[k]) for k in terms}, law=f"{law} -> {other}")
     say(f"  law of {effect}, {law} -> {other}: {'kept' if ok else 'not kept'}: {verdict}")
