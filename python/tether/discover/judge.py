@@ -2,8 +2,8 @@
 (bic_change), and the rules side by side: an effect on the whole record (full_data_verdict) and on
 the held-out part (heldout_verdict), slack that must act (_slack_acts), a shape (_shape_judged), a
 rival law (_law_judged), and when the damping table is tried (_partial_damping_gain). (The Iwan
-bank's restart keeps the same model with the same terms, on a lower error alone: rival.py.) docs/discovery.md,
-"The criteria, and why", tells the measurements behind each value."""
+bank's restart keeps the same model with the same terms, on a lower error alone: rival.py.)
+docs/discovery.md, "The criteria, and why", tells the measurements behind each value."""
 
 from __future__ import annotations
 
