@@ -36,7 +36,7 @@ that polynomial closes only part of the gap, the candidate is fitted again with 
 The package, one job per module: ``laws`` (what an effect and a law are), ``noise``, ``scales``,
 ``samples`` (the held-out part, the thinning), ``fitting``, ``starts``, ``evidence`` (regimes,
 windows, signatures), ``judge`` (every threshold of acceptance), ``records``, ``refine`` (shapes),
-``rival`` (rival laws, the Iwan stages), ``search`` (discover() itself) and ``document`` (OUT.json
+``rival`` (rival laws, the Iwan stages), ``nuisance`` (the record's nuisance parameters), ``search`` (discover() itself) and ``document`` (OUT.json
 and the account). docs/discovery.md tells the story. Settings for a run beside others (bench/):
 ``tether.discover.fitting.ENGINE_OPTIONS`` and ``tether.discover.fitting.PARALLEL_FITS``.
 """
@@ -48,6 +48,7 @@ from .evidence import Window, disagreement, regime_table, regimes, signatures
 from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, fit_model, predict
 from .laws import CANDIDATES, candidates, free_parameters
 from .noise import NoiseEstimate, estimate_noise
+from .nuisance import nuisance_not_freed, nuisance_parameters, nuisance_section
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Step
 from .samples import search_thinning, thinned, thinned_input_miss
 from .search import discover
@@ -55,7 +56,7 @@ from .search import discover
 __all__ = ["CANDIDATES", "DEFAULT_BUDGET", "ENGINE_OPTIONS", "CandidateResult", "Discovery", "DiscoveryError",
            "ModelFit", "NoiseEstimate", "Refinement", "Removal", "Step", "Window", "account", "candidates",
            "disagreement", "discover", "discovery_document", "estimate_noise", "fit_model", "free_parameters",
-           "ordinal", "predict", "regime_table", "regimes", "search_thinning", "signatures", "thinned",
+           "nuisance_not_freed", "nuisance_parameters", "nuisance_section", "ordinal", "predict", "regime_table", "regimes", "search_thinning", "signatures", "thinned",
            "thinned_input_miss"]
 
 # `tether.discover(...)` calls tether.api.discover (docs/api.md); the package stays a package

@@ -6,6 +6,7 @@ import numpy as np
 
 from ..traces import Trace
 from .evidence import balance_elongation, regimes, Window
+from .nuisance import nuisance_lines, nuisance_section
 from .records import CandidateResult, Discovery
 
 
@@ -66,7 +67,7 @@ def discovery_document(d: Discovery) -> dict:
                "regimes": st.regimes, "candidates": [c.as_dict(sigma) for c in st.candidates],
                "added": st.effect} for st in d.steps]
     final = d.final
-    final_params = {"model": final.model, "parameters": {k: float(v) for k, v in final.params.items()}}
+    final_params = {"model": final.model, "parameters": {k: float(v) for k, v in final.law_params.items()}}
     return {
         "format": "tether-discovery/1",
         "trace": str(tr.stem),
@@ -92,6 +93,7 @@ def discovery_document(d: Discovery) -> dict:
         "rounds": rounds,
         "refinements": [r.as_dict(sigma) for r in d.refinements],
         "shape_refined": list(final.shape),
+        "nuisance": nuisance_section(tr, final),
         "stop_reason": d.stop_reason,
         "seconds": d.seconds,
         "final_params": final_params,
@@ -129,6 +131,7 @@ def account(d: Discovery) -> str:
     if not d.added_effects:
         lines.append("no effect is missing from the start model")
     lines.append(f"stopped: {d.stop_reason}")
+    lines += nuisance_lines(nuisance_section(d.trace, d.final))
     lines.append(f"discovered: {', '.join(d.added_effects) or 'nothing'}; final model {d.final.model}, RMS error "
                  f"{d.final.rms:.3g} m = {d.final.rms / sigma:.2f} x noise ({d.seconds:.1f} s)")
     return "\n".join(lines)

@@ -11,6 +11,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from .. import nuisance as NZ
 from ..models import ModelSpec, parse_model
 from ..traces import Trace
 from .laws import _floor, _POSITIVE, free_parameters, HELD_AT_START
@@ -35,6 +36,18 @@ class ModelFit:
     unidentifiable: list = field(default_factory=list)
     best_start: int = 0
     shape: tuple = ()              # shape terms freed beyond free_parameters (refine_shapes)
+    intervals: dict = field(default_factory=dict)   # name -> (low, high), 95 %, of every free parameter
+
+    @property
+    def nuisance(self) -> dict:
+        """The nuisance parameters this fit freed (discover.nuisance.nuisance_parameters), name ->
+        fitted value; they are in ``params`` too, so every later fit starts from them."""
+        return {k: float(v) for k, v in self.params.items() if k in NZ.NUISANCE}
+
+    @property
+    def law_params(self) -> dict:
+        """``params`` without the nuisance parameters: the model's own (a --params file's)."""
+        return {k: v for k, v in self.params.items() if k not in NZ.NUISANCE}
 
     @property
     def model(self) -> str:
@@ -158,6 +171,7 @@ class _DirectResult:
     predictions: list
     evaluations: int
     message: str
+    ci95: dict = field(default_factory=dict)
 
 
 #: engine options for every discovery fit (e.g. n_threads)
@@ -196,6 +210,11 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
     values.update(held or {})
     free, scaling = {}, {}
     for n in names:
+        if n in NZ.NUISANCE:
+            lo, hi, s, how = NZ.nuisance_box(trace, n)
+            s = float((start or {}).get(n, s))
+            free[n], scaling[n] = (lo, hi, s), how
+            continue
         s = float((start or {}).get(n, est.get(n, defaults[n])))
         lo, hi, s, how = F._bounds_and_start(n, s, bounds, {k: v for k, v in est.items() if k.startswith("_")})
         if how == "log" and not s > 0:
@@ -209,11 +228,14 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
         opts.setdefault("horizon_stages", 3)
     r = idn.fit([x.exp], free, scaling=scaling, **opts)
     values.update(r.as_dict())
+    values.update({k: float(v) for k, v in (held or {}).items() if k in NZ.NUISANCE})
     pred = F._predict(x, values)
     rms = float(np.sqrt(np.mean((pred - np.asarray(trace.measured, float)) ** 2)))
-    return _DirectResult(parameters=values, free=list(names), values=r.as_dict(),
-                         std_error=dict(zip(r.names, map(float, r.std_error))), unidentifiable=list(r.unidentifiable),
-                         rms=rms, predictions=[pred], evaluations=r.evaluations, message=r.message)
+    return _DirectResult(parameters={k: v for k, v in values.items() if k not in NZ.NUISANCE}, free=list(names),
+                         values=r.as_dict(), std_error=dict(zip(r.names, map(float, r.std_error))),
+                         unidentifiable=list(r.unidentifiable), rms=rms, predictions=[pred], evaluations=r.evaluations,
+                         message=r.message, ci95={n: (float(a), float(b)) for n, a, b in
+                                                   zip(r.names, r.ci_low, r.ci_high)})
 
 
 #: the second search (from the refined model) caps its fits at this share of the first's: it starts
@@ -231,7 +253,7 @@ QUICK_CAP_SHARE = 0.5
 def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Sequence[dict | None], sc: _Scales,
               quick_iterations: int = 12, time_cap: float | None = None, extra: Sequence[str] = (),
               held: Sequence[str] = (), own_thread: bool = False, baseline_rms: float | None = None,
-              **options) -> ModelFit:
+              nuisance: Sequence[str] = (), **options) -> ModelFit:
     """Fit ``spec`` from each start (a few iterations each when there are several; None = tether.fit's
     data-based estimate), then carry the best to convergence. ``best_start`` of the result is the
     index of the start that won. ``extra`` frees shape terms beyond free_parameters; ``held`` keeps
@@ -239,13 +261,15 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     calling thread alone (see _fit_once). baseline_rms: the error of the model this one extends;
     where no quick fit gets 0.1 % below it, the best of them is returned as it is (a candidate with
     nothing to gain; carrying it to convergence cost 15-40 s a time on a 10 s record and always
-    ended where the quick fits had)."""
+    ended where the quick fits had). nuisance: the nuisance parameters freed beside the model's
+    (discover.nuisance.nuisance_parameters); their fitted values join ``params``."""
     from .judge import CRITERIA      # (the judge reads fits: imported when a fit runs)
 
     t0 = time.perf_counter()
     spec = spec.for_experiment(trace.experiment)
     names = free_parameters(spec, trace.experiment)
     names += [e for e in extra if e not in names]
+    names += [e for e in nuisance if e not in names]
     names = [e for e in names if e not in held]
     evaluations = 0
     best, best_i, msg = None, -1, ""
@@ -285,10 +309,13 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
         return ModelFit(spec=spec, effects=tuple(effects), params={}, free=names, rms=float("inf"),
                         predicted=np.full(len(trace.time), np.nan), evaluations=evaluations,
                         seconds=time.perf_counter() - t0, ok=False, message=msg or "fit failed")
-    return ModelFit(spec=spec, effects=tuple(effects), params=dict(best.parameters), free=list(best.free),
+    params = dict(best.parameters)
+    params.update({n: float(best.values[n]) for n in best.free if n in NZ.NUISANCE})
+    return ModelFit(spec=spec, effects=tuple(effects), params=params, free=list(best.free),
                     rms=float(best.rms), predicted=np.asarray(best.predictions[0]), evaluations=evaluations,
                     seconds=time.perf_counter() - t0, message=best.message, std_error=dict(best.std_error),
-                    unidentifiable=list(best.unidentifiable), best_start=best_i, shape=tuple(extra))
+                    unidentifiable=list(best.unidentifiable), best_start=best_i, shape=tuple(extra),
+                    intervals={k: (float(a), float(b)) for k, (a, b) in best.ci95.items()})
 
 
 def _heldout(trace: Trace, spec: ModelSpec, params: dict, first: int) -> float:

@@ -3,6 +3,7 @@ rival laws, carry a thinned search to the whole record)."""
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import replace
@@ -19,6 +20,8 @@ from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain,
                     full_data_verdict, heldout_verdict)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, RIVAL_LAWS
 from .noise import estimate_noise
+from .nuisance import nuisance_parameters, nuisance_start
+from .. import nuisance as NZ
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Step
 from .refine import _knots_unseen, _shape_groups, refine_shapes
 from .rival import IWAN_STAGE_CAP_FACTOR, bank_cap_factor, finer_bank, restart_idle_elements, rival_law
@@ -49,11 +52,19 @@ def _refit_without_slack(trace: Trace, cur: ModelFit, results: Sequence, sigma: 
 
 
 def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None] | None = None,
-             max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET) -> Discovery:
+             max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET,
+             mass_band: float | None = None, free_nuisance: bool = True) -> Discovery:
     """Run the discovery loop on one trace (see the package docstring). ``progress`` receives one
     line per stage. ``budget`` [s] bounds the run: a step whose fits are not all done when it is
-    spent adds nothing, and the discovery stops with the model it has, saying so."""
-    return Search(trace, start, progress, max_steps, heldout_candidates, budget).run()
+    spent adds nothing, and the discovery stops with the model it has, saying so. Every fit frees
+    the record's nuisance parameters (discover.nuisance.nuisance_parameters) unless
+    ``free_nuisance`` is False; ``mass_band``: the effective mass's band, relative to
+    payload_mass_kg (default: the trace's mass_uncertainty_rel, else
+    tether.nuisance.DEFAULT_MASS_BAND; 0 = the mass is exact)."""
+    trace = copy.copy(trace)
+    trace.mass_uncertainty_rel = NZ.mass_band_rel(trace, mass_band) if trace.rig == "payload" else None
+    nuisance = tuple(nuisance_parameters(trace)) if free_nuisance else ()
+    return Search(trace, start, progress, max_steps, heldout_candidates, budget, nuisance).run()
 
 
 class Search:
@@ -65,8 +76,9 @@ class Search:
     the fit to the whole record."""
 
     def __init__(self, trace: Trace, start: str, progress: Callable[[str], None] | None, max_steps: int,
-                 heldout_candidates: int, budget: float | None):
+                 heldout_candidates: int, budget: float | None, nuisance: Sequence[str] = ()):
         self.t_begin = time.perf_counter()
+        self.nuisance = tuple(nuisance)  # freed in every fit from the start model on
         self.budget = budget
         self.deadline = None if budget is None else self.t_begin + float(budget)
         self.budget_hit = False          # a fit ran past the deadline: what it judged cannot be taken
@@ -105,8 +117,11 @@ class Search:
         """The start model, fitted; the time cap of the search's fits, 2000 of its simulations (CPU
         time, as the caps are counted); its held-out error."""
         spec, trace = self.spec, self.trace
-        self.say(f"fitting the start model {spec.canonical}")
-        cur = fit_model(trace, spec, self.base_effects, [None], self.sc)
+        self.say(f"fitting the start model {spec.canonical}"
+                 + (f" with the nuisance parameters {', '.join(self.nuisance)}" if self.nuisance else ""))
+        nz_start = nuisance_start(trace, self.nuisance)
+        cur = fit_model(trace, spec, self.base_effects, [nz_start, None] if nz_start else [None], self.sc,
+                        nuisance=self.nuisance)
         if not cur.ok:
             raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
         t_sim = time.process_time()
@@ -131,7 +146,7 @@ class Search:
         if tr is self.part:
             held += _knots_unseen(self.part, extra, starts)
         r = fit_model(tr, sp, eff, starts, scales, time_cap=cap_factor * self.fit_cap, extra=extra, held=held,
-                      deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms)
+                      deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms, nuisance=self.nuisance)
         if self.deadline is not None and time.perf_counter() > self.deadline:
             self.budget_hit = True           # this fit may have been cut short: it cannot judge
         return r
@@ -538,7 +553,7 @@ class Search:
             fitted = fit_model(self.whole, cur.spec, cur.effects, [cur.params], _scales(self.whole),
                                time_cap=self.every * self.cap, extra=cur.shape,
                                held=self.shape_held + _replaced(cur.shape), deadline=self.deadline,
-                               max_iterations=WHOLE_RECORD_ITERATIONS)
+                               max_iterations=WHOLE_RECORD_ITERATIONS, nuisance=self.nuisance)
             if not fitted.ok:
                 self.stop += (f"; the fit to the whole record failed ({fitted.message}): the searched record's "
                               "values are kept")
