@@ -52,6 +52,10 @@ SHORT = {"nonlinear_stiffness": "nlstiff", "hysteresis": "hyst", "nonlinear_damp
          "slack": "slack"}
 
 
+#: options of every discovery this evaluation runs (--budget, --no-nuisance)
+DISCOVER_OPTIONS: dict = {}
+
+
 def _one(job):
     """Generate, write, discover one trace; returns the result row (run in a worker process)."""
     name, kw, outdir = job
@@ -75,7 +79,7 @@ def _one(job):
     trace = read_trace(Path(outdir) / name)
     t0 = time.perf_counter()
     try:
-        d = D.discover(trace)
+        d = D.discover(trace, **DISCOVER_OPTIONS)
         doc = D.discovery_document(d)
         row = {"name": name, "experiment": trace.experiment, "hidden": sorted(tr.revealed),
                "named": doc["added_effects"], "final_model": doc["final_model"],
@@ -207,8 +211,15 @@ def main(argv=None) -> int:
                          "levels and half of the forced ones in motion (issue 30)")
     ap.add_argument("--traces", default=None, metavar="DIR",
                     help="run the traces of a folder drawn by another generator (truth in each JSON's 'hidden')")
+    ap.add_argument("--budget", type=float, default=None, help="each discovery's time budget [s] (default: its own)")
+    ap.add_argument("--no-nuisance", action="store_true", help="discovery without its nuisance parameters")
     a = ap.parse_args(argv)
     import hidden_effects as he
+
+    if a.budget is not None:
+        DISCOVER_OPTIONS["budget"] = a.budget
+    if a.no_nuisance:
+        DISCOVER_OPTIONS["free_nuisance"] = False
 
     outdir = Path(a.out or (f"/tmp/discovery_eval_{Path(a.traces).name}" if a.traces
                             else f"/tmp/discovery_eval_{'nuisance_' if a.family == 'nuisance' else ''}{a.n}_{a.seed}"))

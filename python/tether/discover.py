@@ -45,6 +45,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from . import nuisance as NZ
 from .models import (ELASTIC_FORCES, ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_EPS_FIT, IWAN_K,
                      IWAN_K_FIT, ModelSpec, parse_model)
 from .traces import Trace
@@ -401,6 +402,18 @@ class ModelFit:
     unidentifiable: list = field(default_factory=list)
     best_start: int = 0
     shape: tuple = ()              # shape terms freed beyond free_parameters (refine_shapes)
+    intervals: dict = field(default_factory=dict)   # name -> (low, high), 95 %, of every free parameter
+
+    @property
+    def nuisance(self) -> dict:
+        """The nuisance parameters this fit freed (nuisance_parameters), name -> fitted value;
+        they are in ``params`` too, so every later fit starts from them."""
+        return {k: float(v) for k, v in self.params.items() if k in NZ.NUISANCE}
+
+    @property
+    def law_params(self) -> dict:
+        """``params`` without the nuisance parameters: the model's own (a --params file's)."""
+        return {k: v for k, v in self.params.items() if k not in NZ.NUISANCE}
 
     @property
     def model(self) -> str:
@@ -438,6 +451,129 @@ def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
 #: the creep terms discovery frees in a creep test beyond tether.fit's CREEP_FREE
 CREEP_SHAPE = ("creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau", "slip_limit",
                "slip_load_half")
+
+
+# ---------------------------------------------------------------------------------------------
+# nuisance parameters (issue 30; tether.nuisance, docs/nuisance.md, docs/nuisance-discovery.md)
+def nuisance_parameters(trace: Trace) -> list[str]:
+    """The nuisance parameters every discovery fit of ``trace`` frees, from the start model on, so
+    that no effect is credited with what they explain: the offset of the measured column on every
+    record; on a forced record that is not periodic the initial state x0, v0 (a record cut out of a
+    longer run starts in motion) and the effective mass m within its band (the trace's
+    mass_uncertainty_rel, set from --mass-band; 0 = exact, not freed), or the force gain instead
+    where force_gain_known is false (m and the gain are one nuisance in two forms); on a free
+    vibration x0 (its release point, read off a column that carries the offset) but not m, which a
+    free vibration cannot determine (nuisance_not_freed). On the load rig not offset_input: for a
+    linear law it trades one for one against offset_measured (docs/nuisance-discovery.md)."""
+    names = ["offset_measured"]
+    periodic = bool(trace.periodic_samples)
+    if trace.rig == "payload" and not periodic:
+        names += ["x0", "v0"] if trace.experiment == "forced" else ["x0"]
+    if trace.experiment == "forced":
+        names.append("m" if trace.force_gain_known else "input_gain")
+    return [n for n in names if NZ.refusal(trace, n, names) is None]
+
+
+def nuisance_not_freed(trace: Trace) -> dict:
+    """name -> why discovery keeps it at the record's value, for the nuisance parameters of the
+    record's rig that nuisance_parameters leaves out."""
+    freed = nuisance_parameters(trace)
+    out = {}
+    for n in (("m", "x0", "v0", "input_gain") if trace.rig == "payload" else ()) + ("offset_input",):
+        if n in freed or (n == "input_gain" and trace.force_gain_known) or (n == "offset_input" and trace.input is None):
+            continue
+        why = NZ.refusal(trace, n, freed)
+        if why is None and n == "offset_input":
+            why = ("for a linear law it trades one for one against offset_measured (a constant offset of the input "
+                   "shifts the response by a constant), so discovery frees offset_measured only")
+        if why is None and n == "input_gain":
+            why = "the force gain is known (force_gain_known); the effective mass m is freed instead"
+        if why is None and n == "v0":
+            why = "a free vibration is released at rest"
+        if why is not None:
+            out[n] = why
+    return out
+
+
+def nuisance_record_values(trace: Trace) -> dict:
+    """What the record states (or the tool assumes) for each nuisance parameter: the start of
+    each and the value its change is measured from."""
+    out = {"offset_measured": 0.0, "offset_input": 0.0, "input_gain": 1.0}
+    if trace.rig == "payload":
+        out.update(m=float(trace.payload_mass_kg), x0=float(trace.initial_displacement_m),
+                   v0=float(trace.initial_velocity_m_s))
+    return out
+
+
+def nuisance_section(trace: Trace, fit: "ModelFit") -> dict:
+    """The report's account of the nuisance parameters of the final model: per freed parameter the
+    record's value (the start), the fitted value, its 95 % interval, the change in units of the
+    interval's width and whether the interval leaves the record's value out (moved); the mass band;
+    what was kept at the record's value and why."""
+    start = nuisance_record_values(trace)
+    params = {}
+    for n, v in fit.nuisance.items():
+        s = start.get(n, 0.0)
+        lo, hi = fit.intervals.get(n, (math.nan, math.nan))
+        width = hi - lo
+        d = v - s
+        params[n] = {"start": s, "value": v, "interval": [lo, hi] if math.isfinite(width) else None,
+                     "change": d, "change_relative": d / s if s else None,
+                     "change_interval_widths": d / width if width > 0 else None,
+                     "moved": bool(math.isfinite(width) and not lo <= s <= hi)}
+    band = NZ.mass_band_rel(trace) if trace.rig == "payload" else None
+    return {"parameters": params, "not_freed": nuisance_not_freed(trace),
+            "mass_band_rel": band,
+            "mass_band_kg": ([float(trace.payload_mass_kg) * (1 - band), float(trace.payload_mass_kg) * (1 + band)]
+                             if band is not None else None)}
+
+
+def _offset_start(trace: Trace, names: Sequence[str]) -> dict:
+    """Data-based starts of the nuisance parameters for the start model: the equation error of
+    the payload rig, m a + c v + k x = f + k o (o the offset of the measured column), solved by
+    least squares on the record's kinematics with an intercept (and, where m is freed on a forced
+    record, the acceleration's column: m itself), so neither an offset nor a mass 10-30 % off the
+    trace's leans on the stiffness and damping the start model begins from. The load rig: the
+    elongation at the smallest loads, extrapolated along them to zero load."""
+    from . import fit as F
+
+    out = {}
+    if "offset_measured" not in names:
+        return out
+    y = np.asarray(trace.measured, float)
+    if trace.rig == "load":
+        load = np.asarray(trace.input, float)
+        lo = load <= np.quantile(load, 0.2)
+        if lo.sum() >= 3 and np.ptp(load[lo]) > 0:
+            c = np.polyfit(load[lo], y[lo], 1)
+            out["offset_measured"] = float(c[1])
+        return out
+    t = np.asarray(trace.time, float)
+    try:
+        K = F._kinematics(trace, F._dominant_frequency(t, y))
+    except (ValueError, np.linalg.LinAlgError, ZeroDivisionError):
+        return out
+    use = K.use
+    m = float(trace.payload_mass_kg)
+    free_m = "m" in names and trace.input is not None
+    cols = ([K.a[use]] if free_m else []) + [K.v[use], K.x[use], np.ones(int(use.sum()))]
+    rhs = K.f[use] - (0.0 if free_m else m * K.a[use])
+    A = np.column_stack(cols)
+    coef = F._scaled_lstsq(A, rhs)
+    k = float(coef[-2])
+    if not k > 0:
+        return out
+    out["offset_measured"] = float(-coef[-1] / k)
+    if free_m and coef[0] > 0:
+        lo, hi = NZ.mass_bounds(trace)
+        out["m"] = float(min(max(coef[0], lo), hi))
+    c = float(coef[-3])
+    out["EA"] = k * float(trace.length_m)
+    if c > 0:
+        out["c0"] = c
+    if "x0" in names:
+        out["x0"] = float(y[0]) - out["offset_measured"]
+    return out
 
 
 def _floor(name: str, sc: _Scales) -> float:
@@ -648,6 +784,7 @@ class _DirectResult:
     predictions: list
     evaluations: int
     message: str
+    ci95: dict = field(default_factory=dict)
 
 
 #: engine options for every discovery fit (e.g. n_threads)
@@ -684,6 +821,11 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
     values.update(held or {})
     free, scaling = {}, {}
     for n in names:
+        if n in NZ.NUISANCE:
+            lo, hi, s, how = NZ.nuisance_box(trace, n)
+            s = float((start or {}).get(n, s))
+            free[n], scaling[n] = (lo, hi, s), how
+            continue
         s = float((start or {}).get(n, est.get(n, defaults[n])))
         lo, hi, s, how = F._bounds_and_start(n, s, bounds, {k: v for k, v in est.items() if k.startswith("_")})
         if how == "log" and not s > 0:
@@ -697,11 +839,14 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
         opts.setdefault("horizon_stages", 3)
     r = idn.fit([x.exp], free, scaling=scaling, **opts)
     values.update(r.as_dict())
+    values.update({k: float(v) for k, v in (held or {}).items() if k in NZ.NUISANCE})
     pred = F._predict(x, values)
     rms = float(np.sqrt(np.mean((pred - np.asarray(trace.measured, float)) ** 2)))
-    return _DirectResult(parameters=values, free=list(names), values=r.as_dict(),
-                         std_error=dict(zip(r.names, map(float, r.std_error))), unidentifiable=list(r.unidentifiable),
-                         rms=rms, predictions=[pred], evaluations=r.evaluations, message=r.message)
+    return _DirectResult(parameters={k: v for k, v in values.items() if k not in NZ.NUISANCE}, free=list(names),
+                         values=r.as_dict(), std_error=dict(zip(r.names, map(float, r.std_error))),
+                         unidentifiable=list(r.unidentifiable), rms=rms, predictions=[pred], evaluations=r.evaluations,
+                         message=r.message, ci95={n: (float(a), float(b)) for n, a, b in
+                                                   zip(r.names, r.ci_low, r.ci_high)})
 
 
 #: the second search (from the refined model) caps its fits at this share of the first's: it starts
@@ -717,7 +862,7 @@ QUICK_CAP_SHARE = 0.5
 def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Sequence[dict | None], sc: _Scales,
               quick_iterations: int = 12, time_cap: float | None = None, extra: Sequence[str] = (),
               held: Sequence[str] = (), own_thread: bool = False, baseline_rms: float | None = None,
-              **options) -> ModelFit:
+              nuisance: Sequence[str] = (), **options) -> ModelFit:
     """Fit ``spec`` from each start (a few iterations each when there are several; None = tether.fit's
     data-based estimate), then carry the best to convergence. ``best_start`` of the result is the
     index of the start that won. ``extra`` frees shape terms beyond free_parameters; ``held`` keeps
@@ -725,11 +870,13 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     calling thread alone (see _fit_once). baseline_rms: the error of the model this one extends;
     where no quick fit gets 0.1 % below it, the best of them is returned as it is (a candidate with
     nothing to gain; carrying it to convergence cost 15-40 s a time on a 10 s record and always
-    ended where the quick fits had)."""
+    ended where the quick fits had). nuisance: the nuisance parameters freed beside the model's
+    (nuisance_parameters); their fitted values join ``params``."""
     t0 = time.perf_counter()
     spec = spec.for_experiment(trace.experiment)
     names = free_parameters(spec, trace.experiment)
     names += [e for e in extra if e not in names]
+    names += [e for e in nuisance if e not in names]
     names = [e for e in names if e not in held]
     evaluations = 0
     best, best_i, msg = None, -1, ""
@@ -769,10 +916,13 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
         return ModelFit(spec=spec, effects=tuple(effects), params={}, free=names, rms=float("inf"),
                         predicted=np.full(len(trace.time), np.nan), evaluations=evaluations,
                         seconds=time.perf_counter() - t0, ok=False, message=msg or "fit failed")
-    return ModelFit(spec=spec, effects=tuple(effects), params=dict(best.parameters), free=list(best.free),
+    params = dict(best.parameters)
+    params.update({n: float(best.values[n]) for n in best.free if n in NZ.NUISANCE})
+    return ModelFit(spec=spec, effects=tuple(effects), params=params, free=list(best.free),
                     rms=float(best.rms), predicted=np.asarray(best.predictions[0]), evaluations=evaluations,
                     seconds=time.perf_counter() - t0, message=best.message, std_error=dict(best.std_error),
-                    unidentifiable=list(best.unidentifiable), best_start=best_i, shape=tuple(extra))
+                    unidentifiable=list(best.unidentifiable), best_start=best_i, shape=tuple(extra),
+                    intervals={k: (float(a), float(b)) for k, (a, b) in best.ci95.items()})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1884,11 +2034,18 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
 
 
 def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None] | None = None,
-             max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET) -> Discovery:
+             max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET,
+             mass_band: float | None = None, free_nuisance: bool = True) -> Discovery:
     """Run the discovery loop on one trace (see the module docstring). ``progress`` receives one
     line per stage. ``budget`` [s] bounds the run: a step whose fits are not all done when it is
-    spent adds nothing, and the discovery stops with the model it has, saying so."""
+    spent adds nothing, and the discovery stops with the model it has, saying so. Every fit frees
+    the record's nuisance parameters (nuisance_parameters) unless ``free_nuisance`` is False;
+    ``mass_band``: the effective mass's band, relative to payload_mass_kg (default: the trace's
+    mass_uncertainty_rel, else tether.nuisance.DEFAULT_MASS_BAND; 0 = the mass is exact)."""
     t_begin = time.perf_counter()
+    trace = copy.copy(trace)
+    trace.mass_uncertainty_rel = NZ.mass_band_rel(trace, mass_band) if trace.rig == "payload" else None
+    nuisance = tuple(nuisance_parameters(trace)) if free_nuisance else ()
     deadline = None if budget is None else t_begin + float(budget)
     budget_hit = [False]
     say = progress or (lambda s: None)
@@ -1911,8 +2068,10 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     sc_part = _scales(part)
     spec = parse_model(start, trace.experiment)
     base_effects = tuple(spec.effects)
-    say(f"fitting the start model {spec.canonical}")
-    cur = fit_model(trace, spec, base_effects, [None], sc)
+    say(f"fitting the start model {spec.canonical}"
+        + (f" with the nuisance parameters {', '.join(nuisance)}" if nuisance else ""))
+    nz_start = _offset_start(trace, nuisance)
+    cur = fit_model(trace, spec, base_effects, [nz_start, None] if nz_start else [None], sc, nuisance=nuisance)
     if not cur.ok:
         raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
     t_sim = time.process_time()          # CPU time, as the caps are counted
@@ -1930,7 +2089,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
         if tr is part:
             held += _knots_unseen(part, extra, starts)
         r = fit_model(tr, sp, eff, starts, scales, time_cap=cap_factor * fit_cap, extra=extra, held=held,
-                      deadline=deadline, own_thread=own_thread, baseline_rms=baseline_rms)
+                      deadline=deadline, own_thread=own_thread, baseline_rms=baseline_rms, nuisance=nuisance)
         if deadline is not None and time.perf_counter() > deadline:
             budget_hit[0] = True          # this fit may have been cut short: it cannot judge
         return r
@@ -2285,7 +2444,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
             say(f"fitting {cur.label} to the whole record")
             fitted = fit_model(whole, cur.spec, cur.effects, [cur.params], _scales(whole), time_cap=every * cap,
                                extra=cur.shape, held=shape_held + _replaced(cur.shape), deadline=deadline,
-                               max_iterations=WHOLE_RECORD_ITERATIONS)
+                               max_iterations=WHOLE_RECORD_ITERATIONS, nuisance=nuisance)
             if not fitted.ok:
                 stop += (f"; the fit to the whole record failed ({fitted.message}): the searched record's values "
                          "are kept")
@@ -2380,7 +2539,7 @@ def discovery_document(d: Discovery) -> dict:
                "regimes": st.regimes, "candidates": [c.as_dict(sigma) for c in st.candidates],
                "added": st.effect} for st in d.steps]
     final = d.final
-    final_params = {"model": final.model, "parameters": {k: float(v) for k, v in final.params.items()}}
+    final_params = {"model": final.model, "parameters": {k: float(v) for k, v in final.law_params.items()}}
     return {
         "format": "tether-discovery/1",
         "trace": str(tr.stem),
@@ -2406,6 +2565,7 @@ def discovery_document(d: Discovery) -> dict:
         "rounds": rounds,
         "refinements": [r.as_dict(sigma) for r in d.refinements],
         "shape_refined": list(final.shape),
+        "nuisance": nuisance_section(tr, final),
         "stop_reason": d.stop_reason,
         "seconds": d.seconds,
         "final_params": final_params,
