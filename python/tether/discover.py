@@ -528,6 +528,20 @@ def nuisance_section(trace: Trace, fit: "ModelFit") -> dict:
                              if band is not None else None)}
 
 
+def nuisance_lines(section: dict) -> list[str]:
+    """The terminal's lines for nuisance_section: one per freed parameter, one for what was kept."""
+    lines = []
+    for n, v in section["parameters"].items():
+        rel = f" ({100 * v['change_relative']:+.1f} %)" if v["change_relative"] is not None else ""
+        iv = f" [{v['interval'][0]:.5g}, {v['interval'][1]:.5g}]" if v["interval"] else ""
+        widths = f", {v['change_interval_widths']:+.1f} interval widths" if v["change_interval_widths"] is not None else ""
+        lines.append(f"nuisance {n}: {v['start']:.5g} -> {v['value']:.5g}{iv}, change {v['change']:+.3g}{rel}{widths}"
+                     + (": moved" if v["moved"] else ""))
+    if section["not_freed"]:
+        lines.append("kept at the record's value: " + "; ".join(f"{n} ({why})" for n, why in section["not_freed"].items()))
+    return lines
+
+
 def _offset_start(trace: Trace, names: Sequence[str]) -> dict:
     """Data-based starts of the nuisance parameters for the start model: the equation error of
     the payload rig, m a + c v + k x = f + k o (o the offset of the measured column), solved by
@@ -2603,6 +2617,7 @@ def account(d: Discovery) -> str:
     if not d.added_effects:
         lines.append("no effect is missing from the start model")
     lines.append(f"stopped: {d.stop_reason}")
+    lines += nuisance_lines(nuisance_section(d.trace, d.final))
     lines.append(f"discovered: {', '.join(d.added_effects) or 'nothing'}; final model {d.final.model}, RMS error "
                  f"{d.final.rms:.3g} m = {d.final.rms / sigma:.2f} x noise ({d.seconds:.1f} s)")
     return "\n".join(lines)
