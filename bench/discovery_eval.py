@@ -356,6 +356,10 @@ def nuisance_report(rows):
         bad = ", ".join(f"{r['name'][:2]} truth {c[0]:.4g} got {c[1]:.4g} [{c[2][0]:.4g}, {c[2][1]:.4g}]"
                         for r, c in got if not c[3])
         print(f"  {name} within its interval: {len(ok)}/{len(got)}" + (f" (outside: {bad})" if bad else ""))
+        if name == "m":
+            errs = sorted(abs(c[1] / c[0] - 1.0) for _, c in got)
+            print(f"  m relative error: median {100 * errs[len(errs) // 2]:.3f} %, largest {100 * errs[-1]:.3f} % "
+                  f"(the trace's own value: 10-30 % off)")
     forced = [r for r in good if r["experiment"] == "forced"]
     with_m = [r for r in forced if "m" in nuisance_checks(r)]
     print(f"  forced records with the mass within its interval: "

@@ -469,8 +469,9 @@ def nuisance_parameters(trace: Trace) -> list[str]:
     periodic = bool(trace.periodic_samples)
     if trace.rig == "payload" and not periodic:
         names += ["x0", "v0"] if trace.experiment == "forced" else ["x0"]
-    if trace.experiment == "forced":
-        names.append("m" if trace.force_gain_known else "input_gain")
+    form = NZ.mass_form(trace)
+    if form:
+        names.append(form)
     return [n for n in names if NZ.refusal(trace, n, names) is None]
 
 
@@ -568,10 +569,11 @@ def _offset_start(trace: Trace, names: Sequence[str]) -> dict:
     except (ValueError, np.linalg.LinAlgError, ZeroDivisionError):
         return out
     use = K.use
+    f = K.f
     m = float(trace.payload_mass_kg)
     free_m = "m" in names and trace.input is not None
     cols = ([K.a[use]] if free_m else []) + [K.v[use], K.x[use], np.ones(int(use.sum()))]
-    rhs = K.f[use] - (0.0 if free_m else m * K.a[use])
+    rhs = f[use] - (0.0 if free_m else m * K.a[use])
     A = np.column_stack(cols)
     coef = F._scaled_lstsq(A, rhs)
     k = float(coef[-2])
