@@ -30,7 +30,14 @@ def _write(tmp_path, stem, experiment, effects, seed, **kw):
 
 @pytest.fixture(scope="module")
 def slack_forced(tmp_path_factory):
-    return _write(tmp_path_factory.mktemp("nz"), "forced_slack_mass", "forced", {"slack"}, 18, **SLACK_FORCED)
+    """The record, its JSON saying how the generator drove it (the linear interpolant of the force
+    samples): with the default cubic spline the fitted mass's interval ended at 5.7017 kg, the
+    truth 5.7 just outside it (docs/nuisance-discovery.md)."""
+    tr = he.generate("forced", {"slack"}, 18, **SLACK_FORCED)
+    tr.meta["input_interpolation"] = "linear"
+    d = tmp_path_factory.mktemp("nz")
+    tr.write(d, "forced_slack_mass")
+    return d / "forced_slack_mass", tr
 
 
 def test_a_hidden_mass_and_an_offset_are_not_named_as_effects(slack_forced, run_cli, tmp_path):
@@ -100,3 +107,20 @@ def test_mass_band_is_checked_on_the_command_line(slack_forced, run_cli, tmp_pat
     out = tmp_path / "d.json"
     status, _, err = run_cli("discover", stem, "--json", out, "--mass-band", "-1")
     assert status == 2 and "--mass-band" in err and not out.exists()
+
+
+def test_the_html_report_shows_the_nuisance_table():
+    from tether.discover_report import nuisance_html
+
+    section = {"parameters": {"m": {"start": 4.0, "value": 4.8, "interval": [4.79, 4.81], "change": 0.8,
+                                    "change_relative": 0.2, "change_interval_widths": 40.0, "moved": True},
+                              "offset_measured": {"start": 0.0, "value": 1e-6, "interval": [-1e-6, 3e-6],
+                                                  "change": 1e-6, "change_relative": None,
+                                                  "change_interval_widths": 0.25, "moved": False}},
+               "not_freed": {"offset_input": "trades one for one <against> offset_measured"},
+               "mass_band_rel": 0.3, "mass_band_kg": [2.8, 5.2]}
+    page = nuisance_html(section)
+    assert "<h2>Nuisance parameters</h2>" in page and "2.8–5.2 kg" in page and "±30 %" in page
+    assert "+20.0 %" in page and "4.79 – 4.81" in page and "moved" in page
+    assert "&lt;against&gt;" in page                      # escaped
+    assert nuisance_html(None) == ""
