@@ -325,8 +325,8 @@ def nuisance_checks(r) -> dict:
     out = {}
     doc = (r.get("nuisance") or {}).get("parameters") or {}
     for name, key in NUISANCE_TRUTH.items():
-        if name in doc and doc[name].get("interval"):
-            lo, hi = doc[name]["interval"]
+        if name in doc and doc[name].get("interval") and doc[name]["interval"][1] > doc[name]["interval"][0]:
+            lo, hi = doc[name]["interval"]        # (zero width: no interval, a rank-deficient final fit)
             truth = float(r["nuisance_truth"][key])
             out[name] = (truth, doc[name]["value"], (lo, hi), bool(lo <= truth <= hi))
     return out
@@ -363,7 +363,14 @@ def nuisance_report(rows):
     forced = [r for r in good if r["experiment"] == "forced"]
     with_m = [r for r in forced if "m" in nuisance_checks(r)]
     print(f"  forced records with the mass within its interval: "
-          f"{sum(1 for r in with_m if nuisance_checks(r)['m'][3])}/{len(forced)}")
+          f"{sum(1 for r in with_m if nuisance_checks(r)['m'][3])}/{len(forced)} ({len(forced) - len(with_m)} without "
+          "an interval)")
+    for r in forced:
+        got = ((r.get("nuisance") or {}).get("parameters") or {}).get("m")
+        if got:
+            t = float(r["nuisance_truth"]["m_true"])
+            print(f"    {r['name'][:30]:30s} m {got['value']:.5g} kg, truth {t:.5g} ({100 * (got['value'] / t - 1):+.3f} %), "
+                  f"stated {got['start']:.4g}")
 
 
 if __name__ == "__main__":

@@ -517,11 +517,14 @@ def nuisance_section(trace: Trace, fit: "ModelFit") -> dict:
         s = start.get(n, 0.0)
         lo, hi = fit.intervals.get(n, (math.nan, math.nan))
         width = hi - lo
+        # a zero-width interval is the engine's answer where the final fit's Jacobian is rank
+        # deficient (an idle Iwan element's column is zero): no interval, not a sharp one
+        known = math.isfinite(width) and width > 0
         d = v - s
-        params[n] = {"start": s, "value": v, "interval": [lo, hi] if math.isfinite(width) else None,
+        params[n] = {"start": s, "value": v, "interval": [lo, hi] if known else None,
                      "change": d, "change_relative": d / s if s else None,
-                     "change_interval_widths": d / width if width > 0 else None,
-                     "moved": bool(math.isfinite(width) and not lo <= s <= hi)}
+                     "change_interval_widths": d / width if known else None,
+                     "moved": bool(not lo <= s <= hi) if known else None}
     band = NZ.mass_band_rel(trace) if trace.rig == "payload" else None
     return {"parameters": params, "not_freed": nuisance_not_freed(trace),
             "mass_band_rel": band,
@@ -537,7 +540,8 @@ def nuisance_lines(section: dict) -> list[str]:
         iv = f" [{v['interval'][0]:.5g}, {v['interval'][1]:.5g}]" if v["interval"] else ""
         widths = f", {v['change_interval_widths']:+.1f} interval widths" if v["change_interval_widths"] is not None else ""
         lines.append(f"nuisance {n}: {v['start']:.5g} -> {v['value']:.5g}{iv}, change {v['change']:+.3g}{rel}{widths}"
-                     + (": moved" if v["moved"] else ""))
+                     + (": moved" if v["moved"] else "" if v["interval"] else " (no interval: the final fit's "
+                                                                            "Jacobian is rank deficient)"))
     if section["not_freed"]:
         lines.append("kept at the record's value: " + "; ".join(f"{n} ({why})" for n, why in section["not_freed"].items()))
     return lines

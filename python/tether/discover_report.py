@@ -197,7 +197,7 @@ def nuisance_html(section: dict | None) -> str:
                                              else "–") + "</td>"
         f"<td>{v['change']:+.4g}" + (f" ({100 * v['change_relative']:+.1f} %)" if v["change_relative"] is not None
                                       else "") + "</td>"
-        f"<td>{_f(v['change_interval_widths'], '+.2f')}</td><td>{'moved' if v['moved'] else 'no'}</td></tr>"
+        f"<td>{_f(v['change_interval_widths'], '+.2f')}</td><td>{'moved' if v['moved'] else 'no' if v['interval'] else '–'}</td></tr>"
         for n, v in section["parameters"].items())
     kept = "".join(f"<li><code>{esc(n)}</code>: {esc(why)}</li>" for n, why in section["not_freed"].items())
     band = section.get("mass_band_kg")
