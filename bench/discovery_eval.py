@@ -325,8 +325,9 @@ def nuisance_checks(r) -> dict:
     out = {}
     doc = (r.get("nuisance") or {}).get("parameters") or {}
     for name, key in NUISANCE_TRUTH.items():
-        if name in doc and doc[name].get("interval") and doc[name]["interval"][1] > doc[name]["interval"][0]:
-            lo, hi = doc[name]["interval"]        # (zero width: no interval, a rank-deficient final fit)
+        iv = doc.get(name, {}).get("interval")
+        if iv and iv[0] <= doc[name]["value"] <= iv[1] and iv[1] > iv[0]:
+            lo, hi = iv        # (zero width, or one leaving out its value: no interval, as discover reports it)
             truth = float(r["nuisance_truth"][key])
             out[name] = (truth, doc[name]["value"], (lo, hi), bool(lo <= truth <= hi))
     return out
