@@ -141,7 +141,8 @@ API
 ===
 ``generate(experiment, effects, seed, noise=None, rate=None, **overrides) -> Trace``;
 ``Trace.write(dirpath, stem)``; ``suite(n=48, seed=0) -> [(name, Trace)]``;
-CLI ``python python_tests/hidden_effects.py OUTDIR --n 48 [--seed 0] [--jobs 2]``.
+``nuisance_specs(n=24, seed=0)``: the nuisance family (see ``generate``'s ``nuisance``).
+CLI ``python python_tests/hidden_effects.py OUTDIR --n 48 [--seed 0] [--jobs 2] [--nuisance]``.
 """
 from __future__ import annotations
 
@@ -605,6 +606,8 @@ def _dynamic(experiment, effects, P, rate, rng):
         duration = P["duration_s"]
         amp0 = (P["slack_peak_factor"] if slack else P["peak_factor"]) * u_b
     P["duration_s"] = duration
+    preroll = float(P.get("_preroll_s", 0.0)) if experiment == "forced" else 0.0
+    cut = int(round(preroll * rate))      # samples run before the record starts (in motion)
 
     nd_on = "nonlinear_damping" in effects
     if nd_on and P["damping_law"] == "gauss":
@@ -624,7 +627,7 @@ def _dynamic(experiment, effects, P, rate, rng):
         def damp(x, v):
             return c0 * v
 
-    t = _times(rate, duration, rng)
+    t = _times(rate, duration + cut / rate, rng) if cut else _times(rate, duration, rng)
     hmax = min(H_MAX, 0.02 / w_n)
     force = None
     if experiment == "forced":
@@ -674,6 +677,11 @@ def _dynamic(experiment, effects, P, rate, rng):
                 x0 *= 0.7
         else:
             break
+    if cut:
+        # the record is cut out of a longer run: it starts where the run was at t = preroll
+        x0 = float(U[cut] - u_b)
+        hidden.update(preroll_s=cut / rate, v0_m_s=float(V[cut]))
+        t, force, U, V, T = t[cut:] - t[cut], force[cut:], U[cut:], V[cut:], T[cut:]
     if experiment == "forced":
         hidden["force_scale_N"] = float(np.max(np.abs(force)))
     hidden.update(slack_events=rig.slack_events, min_strain=float(U.min() / L),
@@ -808,7 +816,29 @@ def _load_test(experiment, effects, P, rate, rng, jitter):
 # ----------------------------------------------------------------------------------------------
 # Public API
 # ----------------------------------------------------------------------------------------------
-def generate(experiment, effects=frozenset(), seed=0, noise=None, rate=None, **overrides):
+#: the nuisance family (issue 30; ``generate(..., nuisance=True)``): the effective mass the
+#: simulation uses relative to the JSON's payload_mass_kg, the offset of the measured column in
+#: noise levels (random sign), the share of forced records cut out of a longer run (in motion) and
+#: how far into that run they start [s]
+NUISANCE_MASS_FACTOR = (1.1, 1.3)
+NUISANCE_OFFSET_NOISE = (2.0, 5.0)
+NUISANCE_IN_MOTION_SHARE = 0.5
+NUISANCE_PREROLL_S = (2.0, 4.0)
+
+
+def _nuisance_draw(experiment, seed):
+    """The nuisance family's draws for one trace, from a stream of their own (the default draws
+    stay bit for bit what they were): mass factor, offset in noise levels (signed), pre-roll [s]
+    (0 = the record starts at rest, as its JSON says)."""
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 30]))
+    factor = _r(rng.uniform(*NUISANCE_MASS_FACTOR))
+    offset = _r(rng.uniform(*NUISANCE_OFFSET_NOISE) * rng.choice([-1.0, 1.0]))
+    moving = rng.random() < NUISANCE_IN_MOTION_SHARE
+    preroll = _r(rng.uniform(*NUISANCE_PREROLL_S), 2)
+    return factor, offset, (preroll if experiment == "forced" and moving else 0.0)
+
+
+def generate(experiment, effects=frozenset(), seed=0, noise=None, rate=None, nuisance=False, **overrides):
     """Generate one trace.
 
     experiment: one of EXPERIMENTS; effects: iterable of EFFECTS names; seed: int (the trace is a
@@ -818,6 +848,16 @@ def generate(experiment, effects=frozenset(), seed=0, noise=None, rate=None, **o
     ``EA_N``, ``zeta``, ``stiffness_law``, ``damping_law``, ``creep_kernel``, ``creep_program``,
     ``x0_m``, ``duration_s``) plus ``jitter`` (fraction of the sample interval, non-uniform time)
     and ``description``.
+
+    nuisance (dynamic experiments only; issue 30): what a real lab record knows imperfectly about
+    itself. The simulation's payload mass (inertia and weight) is the JSON's payload_mass_kg times
+    NUISANCE_MASS_FACTOR; the measured column carries a constant offset of NUISANCE_OFFSET_NOISE
+    noise levels, random sign; about half of the forced records are cut NUISANCE_PREROLL_S into a
+    longer run, so they start in motion. The JSON then omits initial_displacement_m and
+    initial_velocity_m_s (free vibration too: its release point is read off the offset column).
+    ``hidden.nuisance`` holds the truths: m_true, mass_factor, offset_measured, x0, v0, in_motion.
+    Overrides ``mass_factor``, ``offset_noise`` (signed, in noise levels) and ``preroll_s`` replace
+    the draws. Off (the default), every draw is bit for bit what it was without the option.
     """
     effects = _check_effects(experiment, effects)
     ss = np.random.SeedSequence(int(seed))
@@ -830,6 +870,14 @@ def generate(experiment, effects=frozenset(), seed=0, noise=None, rate=None, **o
         rate = float(r_par.choice(RATES[experiment]))
     jitter = float(overrides.pop("jitter", 0.0))
     description = overrides.pop("description", None)
+    nz = None
+    if nuisance:
+        if experiment not in DYNAMIC:
+            raise ValueError(f"nuisance=True applies to the payload rig's experiments {DYNAMIC}, not {experiment!r}")
+        factor, offset, preroll = _nuisance_draw(experiment, seed)
+        nz = {"mass_factor": float(overrides.pop("mass_factor", factor)),
+              "offset_noise": float(overrides.pop("offset_noise", offset)),
+              "preroll_s": float(overrides.pop("preroll_s", preroll)) if experiment == "forced" else 0.0}
     allowed = set(P) | {"x0_m", "duration_s", "v0_m_s"}
     unknown = set(overrides) - allowed
     if unknown:
@@ -843,11 +891,17 @@ def generate(experiment, effects=frozenset(), seed=0, noise=None, rate=None, **o
     if experiment in DYNAMIC:
         if jitter:
             raise ValueError("jitter is only supported for load-controlled experiments")
-        t, force, truth, hid, x0 = _dynamic(experiment, effects, P, float(rate), r_time)
+        if nz is None:
+            t, force, truth, hid, x0 = _dynamic(experiment, effects, P, float(rate), r_time)
+        else:
+            Ps = dict(P, mass_kg=P["mass_kg"] * nz["mass_factor"], _preroll_s=nz["preroll_s"])
+            t, force, truth, hid, x0 = _dynamic(experiment, effects, Ps, float(rate), r_time)
+            P.update({k: v for k, v in Ps.items() if k not in ("mass_kg", "_preroll_s")})
         meta["payload_mass_kg"] = P["mass_kg"]
         meta["gravity_m_s2"] = P["gravity_m_s2"]
-        meta["initial_displacement_m"] = float(x0)
-        meta["initial_velocity_m_s"] = float(P["v0_m_s"]) if experiment == "free_vibration" else 0.0
+        if nz is None:
+            meta["initial_displacement_m"] = float(x0)
+            meta["initial_velocity_m_s"] = float(P["v0_m_s"]) if experiment == "free_vibration" else 0.0
         if experiment == "free_vibration":
             desc = (f"free vibration: {P['mass_kg']:g} kg payload on a {P['length_m']:g} m tether, "
                     f"released at rest {x0:+.4f} m from static balance, {rate:g} Hz")
@@ -860,6 +914,13 @@ def generate(experiment, effects=frozenset(), seed=0, noise=None, rate=None, **o
         meta["gravity_m_s2"] = P["gravity_m_s2"]
         desc += f", {rate:g} Hz"
     clean = truth[mname]
+    if nz is not None:
+        clean = clean + nz["offset_noise"] * noise
+        v0 = float(hid.get("v0_m_s", P["v0_m_s"] if experiment == "free_vibration" else 0.0))
+        nz.update(m_true=P["mass_kg"] * nz["mass_factor"], offset_measured=nz["offset_noise"] * noise,
+                  x0=float(x0), v0=v0, in_motion=bool(nz["preroll_s"] > 0))
+        desc += (f"; effective mass {nz['mass_factor']:g} x the stated, offset {nz['offset_noise']:+g} noise levels"
+                 + (f", cut {nz['preroll_s']:g} s into a longer run" if nz["in_motion"] else ""))
     meas = clean + noise * r_noise.standard_normal(len(clean))
     cols = {"time": t}
     if INPUT[experiment]:
@@ -882,6 +943,8 @@ def generate(experiment, effects=frozenset(), seed=0, noise=None, rate=None, **o
                       "rate_Hz": float(rate), "jitter": jitter, "laws": laws,
                       "params": {k: v for k, v in P.items() if not k.startswith("_")},
                       "derived": hid}
+    if nz is not None:
+        meta["hidden"]["nuisance"] = nz
     meta = _jsonable(meta)
     return Trace(cols, meta, truth)
 
@@ -936,6 +999,19 @@ def suite_specs(n=48, seed=0):
     return specs
 
 
+def nuisance_specs(n=24, seed=0):
+    """The nuisance family (issue 30): the first ``n`` free-vibration and forced records of
+    ``suite_specs`` (for n = 24: each experiment's null, every effect alone, every pair and a second
+    null), each drawn with ``nuisance=True``."""
+    total = n
+    while True:
+        specs = [(name, dict(kw, nuisance=True)) for name, kw in suite_specs(total, seed)
+                 if kw["experiment"] in DYNAMIC]
+        if len(specs) >= n:
+            return specs[:n]
+        total += n
+
+
 def _gen_spec(spec):
     name, kw = spec
     kw = dict(kw)
@@ -955,9 +1031,12 @@ def main(argv=None):
     ap.add_argument("--n", type=int, default=48)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--nuisance", action="store_true",
+                    help="the nuisance family: free-vibration and forced records with a hidden effective mass, "
+                         "an offset and (forced) some starting in motion")
     a = ap.parse_args(argv)
     t0 = _time.perf_counter()
-    specs = suite_specs(a.n, a.seed)
+    specs = nuisance_specs(a.n, a.seed) if a.nuisance else suite_specs(a.n, a.seed)
     if a.jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
         with ProcessPoolExecutor(a.jobs) as ex:

@@ -450,3 +450,74 @@ def test_slack_matches_solve_ivp_with_events():
     ref = np.concatenate(out)
     assert len(ref) == len(t)
     assert np.max(np.abs(tr.truth["elongation"] - ref)) < 2e-6   # << the smallest noise level
+
+
+# ---------------------------------------------------------------------------------------------
+# the nuisance family (issue 30): hidden effective mass, offset, forced records in motion
+# ---------------------------------------------------------------------------------------------
+#: sha256 (first 16 hex) of csv + json of default draws, taken before the nuisance option existed
+DEFAULT_DRAW_HASHES = {"00_free_vibration_null": "9907de1093f952bc", "01_forced_null": "dcca1ea6f91c0c82",
+                       "02_load_unload_null": "15c4bae5a5df0425", "03_creep_null": "63bcba8aa4ad908e",
+                       "05_forced_nlstiff": "f0319c525e44de4d", "09_forced_hyst": "85a4b492ecfcf62f"}
+
+
+def test_default_draws_unchanged_by_the_nuisance_option():
+    import hashlib
+    specs = dict(he.suite_specs(34, 0))
+    for name, want in DEFAULT_DRAW_HASHES.items():
+        _, tr = he._gen_spec((name, specs[name]))
+        got = hashlib.sha256((tr.csv_text() + tr.json_text()).encode()).hexdigest()[:16]
+        assert got == want, name
+
+
+def test_nuisance_free_vibration_runs_on_the_true_mass():
+    """The record is the closed-form damped oscillation of the hidden mass m_true (not the JSON's),
+    read through the offset; the JSON states the mass it was told, and no release point."""
+    tr = he.generate("free_vibration", NONE, seed=21, noise=1e-4, nuisance=True)
+    h = tr.meta["hidden"]
+    nz = h["nuisance"]
+    m_json = tr.meta["payload_mass_kg"]
+    assert 1.1 <= nz["mass_factor"] <= 1.3
+    assert nz["m_true"] == pytest.approx(m_json * nz["mass_factor"])
+    assert 2.0 <= abs(nz["offset_measured"]) / 1e-4 <= 5.0
+    assert "initial_displacement_m" not in tr.meta and "initial_velocity_m_s" not in tr.meta
+    m = nz["m_true"]
+    k, c = h["derived"]["k_lin_N_m"], h["derived"]["c0_N_s_m"]
+    assert h["derived"]["balance_elongation_m"] == pytest.approx(m * 9.81 / k)
+    wn, z = math.sqrt(k / m), c / (2 * math.sqrt(k * m))
+    wd = wn * math.sqrt(1 - z * z)
+    x0, t = nz["x0"], tr.time
+    x = np.exp(-z * wn * t) * (x0 * np.cos(wd * t) + z * wn * x0 / wd * np.sin(wd * t))
+    assert np.max(np.abs(tr.truth["measured"] - nz["offset_measured"] - x)) < 1e-7 * max(1.0, abs(x0) / 0.1)
+    assert np.std(tr.measured - tr.truth["measured"]) == pytest.approx(1e-4, rel=0.1)
+    # the JSON's mass would oscillate visibly faster
+    wj = math.sqrt(k / m_json)
+    assert wj / wn == pytest.approx(math.sqrt(nz["mass_factor"]))
+
+
+def test_nuisance_forced_in_motion_is_the_tail_of_a_linear_run():
+    """A forced record cut out of a longer run: the linear system of the true mass started at the
+    hidden (x0, v0) and driven by the recorded force reproduces it; x0, v0 are not zero."""
+    tr = he.generate("forced", NONE, seed=5, noise=0.0, rate=200.0, nuisance=True, preroll_s=2.5,
+                     mass_factor=1.2, offset_noise=3.0)
+    h = tr.meta["hidden"]
+    nz = h["nuisance"]
+    assert nz["in_motion"] and nz["mass_factor"] == 1.2 and tr.time[0] == 0.0
+    m, c, k = nz["m_true"], h["derived"]["c0_N_s_m"], h["derived"]["k_lin_N_m"]
+    assert math.hypot(nz["x0"], nz["v0"] / math.sqrt(k / m)) > 1e-3           # in motion
+    sys_ = signal.StateSpace([[0.0, 1.0], [-k / m, -c / m]], [[0.0], [1.0 / m]], [[1.0, 0.0]], [[0.0]])
+    _, x, _ = signal.lsim(sys_, tr.columns["force"], tr.time, X0=[nz["x0"], nz["v0"]])
+    assert np.max(np.abs(tr.measured - nz["offset_measured"] - x)) < 1e-5 * np.max(np.abs(x))
+    assert nz["offset_measured"] == 0.0                     # 3 noise levels of no noise
+    assert "initial_displacement_m" not in tr.meta
+
+
+def test_nuisance_specs_family():
+    specs = he.nuisance_specs(24, 3)
+    assert len(specs) == 24
+    exps = [kw["experiment"] for _, kw in specs]
+    assert exps.count("free_vibration") == 12 and exps.count("forced") == 12
+    assert sum(1 for _, kw in specs if not kw["effects"]) == 4
+    assert all(kw["nuisance"] for _, kw in specs)
+    with pytest.raises(ValueError, match="payload rig"):
+        he.generate("creep", NONE, seed=1, nuisance=True)

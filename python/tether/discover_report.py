@@ -151,6 +151,7 @@ def discovery_page(d, doc: dict, images: dict) -> str:
                    "<table><tr><th>effect</th>"
                    "<th>terms freed</th><th>RMS / σ before</th><th>after</th><th>held-out RMS / σ before</th>"
                    f"<th>after</th><th>ΔBIC</th><th>verdict</th></tr>{refined}</table>")
+    nuisance = nuisance_html(doc.get("nuisance"))
     added = ", ".join(doc["added_effects"]) or "nothing"
     every = int(doc.get("searched_every", 1))
     searched = "" if every == 1 else (
@@ -170,6 +171,7 @@ RMS error {doc['rmse_final']:.3g} m = {doc['rmse_final_over_noise']:.2f} × the 
 <h2>The steps</h2>
 <table><tr><th>#</th><th>effect</th><th>model after</th><th>RMS / σ before</th><th>after</th>
 <th>where the disagreement was</th><th>evidence</th></tr>{''.join(rows) or '<tr><td colspan=7>no step: nothing is missing</td></tr>'}</table>
+{nuisance}
 <h2>The gap, step by step</h2><img src="{esc(images['gap'])}" alt="gap">
 <h2>The record against each model</h2>
 <p>Each model in turn: the record and the model's prediction; below, the residual with the noise band
@@ -181,6 +183,32 @@ begins: the candidate fits used for the held-out test saw only the record before
 {refined}
 </body></html>
 """
+
+
+def nuisance_html(section: dict | None) -> str:
+    """The nuisance parameters of the final model (discover.nuisance_section): what the record
+    states, the fitted value with its 95 % interval, how far it moved; and what was kept and why."""
+    if not section:
+        return ""
+    esc = html.escape
+    rows = "".join(
+        f"<tr class={'bad' if v['moved'] else 'good'}><td class=l>{esc(n)}</td><td>{v['start']:.6g}</td>"
+        f"<td>{v['value']:.6g}</td><td>" + (f"{v['interval'][0]:.6g} – {v['interval'][1]:.6g}" if v["interval"]
+                                             else "–") + "</td>"
+        f"<td>{v['change']:+.4g}" + (f" ({100 * v['change_relative']:+.1f} %)" if v["change_relative"] is not None
+                                      else "") + "</td>"
+        f"<td>{_f(v['change_interval_widths'], '+.2f')}</td><td>{'moved' if v['moved'] else 'no' if v['interval'] else '–'}</td></tr>"
+        for n, v in section["parameters"].items())
+    kept = "".join(f"<li><code>{esc(n)}</code>: {esc(why)}</li>" for n, why in section["not_freed"].items())
+    band = section.get("mass_band_kg")
+    band_text = (f" The effective mass was free in {band[0]:.4g}–{band[1]:.4g} kg (±{100 * section['mass_band_rel']:.0f} % "
+                 "of the trace's payload mass)." if band and "m" in section["parameters"] else "")
+    return ("<h2>Nuisance parameters</h2><p>Free in every fit from the start model on, so that no effect is "
+            "named for what they explain. Start: what the record states (its mass, its initial state; offsets 0). "
+            f"Moved: the 95 % interval leaves the start out.{band_text}</p>"
+            "<table><tr><th>parameter</th><th>record</th><th>fitted</th><th>95 % interval</th><th>change</th>"
+            f"<th>in interval widths</th><th>moved</th></tr>{rows or '<tr><td colspan=7>none freed</td></tr>'}</table>"
+            + (f"<p>Kept at the record's value:</p><ul>{kept}</ul>" if kept else ""))
 
 
 def _refinement_terms(r: dict) -> str:

@@ -24,6 +24,11 @@ parameter file of the discovered model: `tether simulate OTHER.csv --params OUT.
 flagged windows, and the gap shrinking step by step.
 --budget SECONDS bounds the run (default 900 s; long records at high rates with several effects
 can need more): a step whose fits are not all done when it is spent adds nothing.
+Every fit frees the record's nuisance parameters from the start model on (the offset of the
+measured column; a forced record's initial state and effective mass, kept within
+payload_mass_kg * (1 +- --mass-band REL), default the trace's mass_uncertainty_rel, else 0.3;
+a free vibration's release point): OUT.json's `nuisance` section reports each with its interval
+and how far it moved (docs/nuisance-discovery.md).
 
 --each TRACE... --out-dir DIR runs one independent discovery per record, each a task on Dask (a
 local cluster of one worker process per core, or --scheduler tcp://HOST:PORT): DIR/NAME.json per
@@ -46,6 +51,8 @@ def add_arguments(parser) -> None:
     from .sweep import add_scheduler_argument
     add_scheduler_argument(parser)
     parser.add_argument("--report", metavar="DIR", help="write DIR/index.html with the story in plots")
+    from .common import add_mass_band_argument
+    add_mass_band_argument(parser, "the effective mass (freed on forced records)")
     parser.add_argument("--budget", metavar="SECONDS", type=positive_number("seconds"), default=None,
                         help="bound the run (default 900 s): a step not judged to the end when it is spent "
                              "adds nothing, and the account says so")
@@ -57,8 +64,10 @@ def run(args) -> int:
     from ..models import parse_model
     from ..report import write_json_atomic
     from . import CLIError, RUN_ERROR
-    from .common import check_output_path, check_report_dir, read_checked_trace
+    from .common import check_output_path, check_report_dir, mass_band_argument, read_checked_trace
     from .console import Progress
+
+    mass_band = mass_band_argument(args)
 
     if args.each:
         from .discover_each import run_each
@@ -73,7 +82,7 @@ def run(args) -> int:
     budget = DEFAULT_BUDGET if args.budget is None else args.budget
     with Progress("discover", budget, unit="s", deadline=True) as bar:
         try:
-            d = discover(trace, start=args.start, progress=bar.line, budget=budget)
+            d = discover(trace, start=args.start, progress=bar.line, budget=budget, mass_band=mass_band)
         except DiscoveryError as e:
             raise CLIError(str(e), RUN_ERROR) from None
         except RuntimeError as e:

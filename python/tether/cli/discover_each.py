@@ -17,11 +17,11 @@ SUMMARY_COLUMNS = ("trace", "experiment", "added_effects", "final_model", "noise
                    "rmse_final", "final_over_noise", "stop_reason")
 
 
-def discover_record(trace, start: str, budget: float | None) -> dict:
+def discover_record(trace, start: str, budget: float | None, mass_band: float | None = None) -> dict:
     """One record's discovery document (runs on a worker)."""
     from ..discover import discover, discovery_document
 
-    d = discover(trace, start=start, **({} if budget is None else {"budget": budget}))
+    d = discover(trace, start=start, mass_band=mass_band, **({} if budget is None else {"budget": budget}))
     return discovery_document(d)
 
 
@@ -37,6 +37,9 @@ def run_each(args) -> int:
     from . import warn
     from .sweep import cluster_map
 
+    from .common import mass_band_argument
+
+    mass_band = mass_band_argument(args)
     traces, out = _check(args)
     names = [t.name for t in traces]
     docs = _done_before(out, traces, args.start) if args.resume else {}
@@ -49,7 +52,8 @@ def run_each(args) -> int:
         docs[todo[k]] = doc
 
     if todo:
-        cluster_map(args.scheduler, discover_record, [(traces[i], args.start, args.budget) for i in todo], "record",
+        cluster_map(args.scheduler, discover_record, [(traces[i], args.start, args.budget, mass_band) for i in todo],
+                    "record",
                     each=finished)
     rows = [summary_row(t.name, t.experiment, docs[i]) for i, t in enumerate(traces)]
     _write_summary(out, rows)

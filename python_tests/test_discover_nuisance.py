@@ -1,0 +1,126 @@
+"""Discovery with nuisance parameters (issue 30): a record whose effective mass is not the one its
+JSON states, whose measured column carries an offset, or that starts in motion.
+
+The records come from python_tests/hidden_effects.py's nuisance option (its own integrator and
+laws); the truths are its ``hidden.nuisance``, which discovery does not read. The acceptance run
+on 24 such records is bench/discovery_eval.py --family nuisance (docs/nuisance-discovery.md).
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import hidden_effects as he
+from tether import discover as D
+from tether.traces import read_trace
+
+#: a short forced record with slack (a fast discovery), its mass 1.2 x the JSON's, its measured
+#: column 4 noise levels off
+SLACK_FORCED = dict(noise=1e-4, rate=100.0, duration_s=10.0, nuisance=True, mass_factor=1.2, offset_noise=4.0,
+                    preroll_s=0.0)
+
+
+def _write(tmp_path, stem, experiment, effects, seed, **kw):
+    tr = he.generate(experiment, effects, seed, **kw)
+    tr.write(tmp_path, stem)
+    return tmp_path / stem, tr
+
+
+@pytest.fixture(scope="module")
+def slack_forced(tmp_path_factory):
+    """The record, its JSON saying how the generator drove it (the linear interpolant of the force
+    samples): with the default cubic spline the fitted mass's interval ended at 5.7017 kg, the
+    truth 5.7 just outside it (docs/nuisance-discovery.md)."""
+    tr = he.generate("forced", {"slack"}, 18, **SLACK_FORCED)
+    tr.meta["input_interpolation"] = "linear"
+    d = tmp_path_factory.mktemp("nz")
+    tr.write(d, "forced_slack_mass")
+    return d / "forced_slack_mass", tr
+
+
+def test_a_hidden_mass_and_an_offset_are_not_named_as_effects(slack_forced, run_cli, tmp_path):
+    stem, tr = slack_forced
+    out = tmp_path / "d.json"
+    status, stdout, err = run_cli("discover", stem, "--json", out)
+    assert status == 0, err
+    doc = json.loads(out.read_text())
+    sigma = tr.meta["hidden"]["noise_sigma_m"]
+    nz = tr.meta["hidden"]["nuisance"]
+    assert doc["added_effects"] == ["slack"]
+    assert doc["rmse_final"] <= 1.5 * sigma
+    got = doc["nuisance"]["parameters"]
+    lo, hi = got["m"]["interval"]
+    assert lo <= nz["m_true"] <= hi
+    assert got["m"]["moved"] and got["m"]["start"] == tr.meta["payload_mass_kg"]
+    lo, hi = got["offset_measured"]["interval"]
+    assert lo <= nz["offset_measured"] <= hi
+    assert "nuisance m:" in stdout and "moved" in stdout
+    assert set(doc["nuisance"]["not_freed"]) == {"offset_input"}
+    # the --params part of the record holds the model's own parameters only
+    assert not set(doc["parameters"]) & {"m", "x0", "v0", "offset_measured"}
+
+
+def test_without_the_nuisance_parameters_the_same_record_is_misread(slack_forced):
+    stem, tr = slack_forced
+    doc = D.discovery_document(D.discover(read_trace(stem), free_nuisance=False))
+    sigma = tr.meta["hidden"]["noise_sigma_m"]
+    assert doc["added_effects"] != ["slack"] or doc["rmse_final"] > 1.5 * sigma, doc["added_effects"]
+    assert doc["nuisance"]["parameters"] == {}
+
+
+def test_which_nuisance_parameters_discovery_frees(tmp_path):
+    fv, _ = _write(tmp_path, "fv", "free_vibration", set(), 3, noise=1e-4, rate=100.0, nuisance=True)
+    fo, _ = _write(tmp_path, "fo", "forced", set(), 4, noise=1e-4, rate=100.0, nuisance=True)
+    lu, _ = _write(tmp_path, "lu", "load_unload", set(), 5, noise=5e-5, rate=5.0)
+    fv, fo, lu = (read_trace(s) for s in (fv, fo, lu))
+    assert D.nuisance_parameters(fv) == ["offset_measured", "x0"]
+    assert "m" in D.nuisance_not_freed(fv) and "scales with" in D.nuisance_not_freed(fv)["m"]
+    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "m"]
+    assert D.nuisance_parameters(lu) == ["offset_measured"]
+    assert "offset_input" in D.nuisance_not_freed(lu)
+    fo.force_gain_known = False
+    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "input_gain"]
+    fo.force_gain_known, fo.mass_uncertainty_rel = True, 0.0
+    assert "m" not in D.nuisance_parameters(fo)
+
+
+@pytest.mark.parametrize("experiment,seed", [("free_vibration", 11), ("forced", 12), ("forced", 13)])
+def test_the_data_based_start_reads_the_offset_and_the_mass(tmp_path, experiment, seed):
+    """The equation-error start finds the offset to a fraction of itself and a mass closer to the
+    truth than the trace's (null records: the linear law is the truth), where the trace's own
+    values are 2-5 noise levels and 10-30 % off. (The mass start of seed 13 is 6 % low: its multisine
+    reaches 4 x the natural frequency, and the smoothed acceleration misses its top.)"""
+    stem, tr = _write(tmp_path, "r", experiment, set(), seed, noise=1e-4, rate=200.0, nuisance=True)
+    nz = tr.meta["hidden"]["nuisance"]
+    t = read_trace(stem)
+    st = D.nuisance.nuisance_start(t, D.nuisance_parameters(t))
+    assert st["offset_measured"] == pytest.approx(nz["offset_measured"], abs=0.3 * abs(nz["offset_measured"]))
+    if experiment == "forced":
+        assert abs(st["m"] - nz["m_true"]) < 0.6 * abs(t.payload_mass_kg - nz["m_true"])
+    assert st["x0"] == pytest.approx(nz["x0"], abs=3e-4)
+
+
+def test_mass_band_is_checked_on_the_command_line(slack_forced, run_cli, tmp_path):
+    stem, _ = slack_forced
+    out = tmp_path / "d.json"
+    status, _, err = run_cli("discover", stem, "--json", out, "--mass-band", "-1")
+    assert status == 2 and "--mass-band" in err and not out.exists()
+
+
+def test_the_html_report_shows_the_nuisance_table():
+    from tether.discover_report import nuisance_html
+
+    section = {"parameters": {"m": {"start": 4.0, "value": 4.8, "interval": [4.79, 4.81], "change": 0.8,
+                                    "change_relative": 0.2, "change_interval_widths": 40.0, "moved": True},
+                              "offset_measured": {"start": 0.0, "value": 1e-6, "interval": [-1e-6, 3e-6],
+                                                  "change": 1e-6, "change_relative": None,
+                                                  "change_interval_widths": 0.25, "moved": False}},
+               "not_freed": {"offset_input": "trades one for one <against> offset_measured"},
+               "mass_band_rel": 0.3, "mass_band_kg": [2.8, 5.2]}
+    page = nuisance_html(section)
+    assert "<h2>Nuisance parameters</h2>" in page and "2.8–5.2 kg" in page and "±30 %" in page
+    assert "+20.0 %" in page and "4.79 – 4.81" in page and "moved" in page
+    assert "&lt;against&gt;" in page                      # escaped
+    assert nuisance_html(None) == ""
