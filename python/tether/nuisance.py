@@ -28,7 +28,7 @@ from .traces import Trace
 
 __all__ = ["NUISANCE", "MEASUREMENT", "STATE", "DEFAULT_MASS_BAND", "INPUT_GAIN_BOUNDS", "mass_band_rel",
            "check_mass_band", "mass_bounds", "mass_form", "refusal", "check_free", "freeable", "nuisance_box",
-           "drive_input", "measured_output", "moved_statement"]
+           "drive_input", "measured_output", "moved_statement", "of_params_file"]
 
 #: the measurement parameters and their defaults (the engine's own list)
 MEASUREMENT = tuple(MEASUREMENT_DEFAULTS)
@@ -204,3 +204,23 @@ def moved_statement(values: Mapping[str, float], start: Mapping[str, float],
         lines.append(f"{n}: {s:.6g} -> {v:.6g}, change {d:+.4g}{rel} = {widths:+.2f} interval widths "
                      f"[{lo:.6g}, {hi:.6g}]: {verdict}")
     return lines
+
+
+def of_params_file(extra: Mapping, trace: Trace) -> dict | None:
+    """The nuisance values a parameter file holds for ``trace`` (its ``extra`` keys, models.ParamsFile),
+    None where it holds none for it: they belong to the records they were fitted on. A fit's file
+    lists its traces (``traces``) beside the values (``nuisance``: name -> value); a discovery's
+    OUT.json names its one record (``trace``) and holds ``nuisance.parameters``: name -> {"value": ...}."""
+    section = extra.get("nuisance")
+    if not isinstance(section, Mapping) or not section:
+        return None
+    if isinstance(section.get("parameters"), Mapping):         # a discovery document
+        from pathlib import Path
+
+        if Path(str(extra.get("trace", ""))).name != trace.stem.name:
+            return None
+        return {k: float(v["value"]) for k, v in section["parameters"].items()
+                if k in NUISANCE and isinstance(v, Mapping) and "value" in v}
+    if trace.stem.name not in set(extra.get("traces") or []):  # a fit's parameter file
+        return None
+    return {k: float(v) for k, v in section.items() if k in NUISANCE}

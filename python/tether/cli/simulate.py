@@ -31,9 +31,10 @@ def run(args) -> int:
     from . import warn
 
     trace = read_checked_trace(args.trace, require_measured=False)   # input-only traces: a pure prediction
-    spec, params, _ = resolve_model(args, trace)
+    spec, params, pf = resolve_model(args, trace)
     out = check_output_path(args.out, trace)
-    result = simulate(trace, spec, params)
+    from ..nuisance import of_params_file
+    result = simulate(trace, spec, params, nuisance=of_params_file(pf.extra, trace) if pf else None)
     for w in result.warnings:
         warn(w)
     write_csv_atomic(out, ["time", result.measured_column, "tension"],

@@ -69,12 +69,10 @@ def run(args) -> int:
         model = "linear"
     params = dict(pf.parameters) if pf else None
     report = check_report_dir(args.report)
-    # a fit's nuisance parameters belong to the traces it was fitted on (tether.nuisance)
-    nuisance = dict(pf.extra.get("nuisance") or {}) if pf else {}
-    nuisance_traces = set(pf.extra.get("traces") or []) if nuisance else set()
-
+    # a fit's or a discovery's nuisance parameters belong to the traces they were fitted on
     def nuisance_of(tr):
-        return nuisance if tr.stem.name in nuisance_traces else None
+        from ..nuisance import of_params_file
+        return of_params_file(pf.extra, tr) if pf else None
 
     rows, images = [], []
     t_all = time.time()
