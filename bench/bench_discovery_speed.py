@@ -10,7 +10,12 @@ the median and the largest time against the 60 s target, and a machine yardstick
 same run (one simulation of the demo record by the FMU) so figures from loaded or slower
 machines can be compared as ratios.
 
-    python bench/bench_discovery_speed.py [--out DIR] [--only SUBSTRING]
+    python bench/bench_discovery_speed.py [--out DIR] [--only SUBSTRING] [--baseline TETHER]
+
+--baseline TETHER: also run another `tether` executable (an older checkout's command line) on each
+record, in alternating order, and print both times and whether the results agree: the same
+added_effects and rmse_final equal to 1e-6 relative (the check of a change meant to leave the
+results as they were); the medians and largest times of both then stand beside one yardstick.
 """
 from __future__ import annotations
 
@@ -55,6 +60,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=None, help="directory for the records and results (default: a temporary one)")
     ap.add_argument("--only", default=None, help="run only the records whose name contains this")
+    ap.add_argument("--baseline", default=None, metavar="TETHER",
+                    help="another tether executable to run on each record and compare with")
+    ap.add_argument("--tether", default=str(Path(sys.executable).with_name("tether")), metavar="TETHER",
+                    help="the tether executable to time (default: the one beside this Python)")
     a = ap.parse_args(argv)
     import hidden_effects as he
 
@@ -71,29 +80,80 @@ def main(argv=None) -> int:
     yard = _yardstick()
     print(f"machine yardstick: one FMU simulation of the demo record {1e3 * yard:.1f} ms; "
           f"load average {os.getloadavg()[0]:.2f} at the start\n")
-    tether = str(Path(sys.executable).with_name("tether"))
+    tether = a.tether
+    if a.baseline:
+        return _compare(records, out, tether, a.baseline, yard)
     times = []
     for name, stem, hidden in records:
-        res = out / f"{name}.discovery.json"
-        t0 = time.perf_counter()
-        p = subprocess.run([tether, "discover", str(stem), "--json", str(res)], capture_output=True, text=True)
-        secs = time.perf_counter() - t0
-        if p.returncode != 0:
-            print(f"{name:36s} FAILED ({p.returncode}): {p.stderr.strip().splitlines()[-1:]}")
+        secs, doc, err = _discover(tether, stem, out / f"{name}.discovery.json")
+        if doc is None:
+            print(f"{name:36s} FAILED: {err}")
             continue
-        doc = json.loads(res.read_text())
         times.append(secs)
         print(f"{name:36s} samples {doc['samples']:5d} hidden {hidden:34s} named "
               f"{','.join(doc['added_effects']) or '-':34s} rmse/noise {doc['rmse_final_over_noise']:5.2f} "
               f"{secs:6.1f} s", flush=True)
     if not times:
         return 1
-    times.sort()
-    print(f"\n{len(times)} runs: median {times[len(times) // 2]:.1f} s, largest {times[-1]:.1f} s "
-          f"(target < {TARGET_S:.0f} s: {'met' if times[-1] < TARGET_S else 'NOT met'}); largest / yardstick "
-          f"{times[-1] / yard:.0f}; load average {os.getloadavg()[0]:.2f} at the end")
+    print(f"\n{len(times)} runs: {_summary(times, yard)}; load average {os.getloadavg()[0]:.2f} at the end")
     return 0
 
+
+def _discover(tether: str, stem: Path, res: Path):
+    """(wall seconds, OUT.json document or None, error line) of one `tether discover` run."""
+    t0 = time.perf_counter()
+    p = subprocess.run([tether, "discover", str(stem), "--json", str(res)], capture_output=True, text=True)
+    secs = time.perf_counter() - t0
+    if p.returncode != 0:
+        return secs, None, f"({p.returncode}) {p.stderr.strip().splitlines()[-1:]}"
+    return secs, json.loads(res.read_text()), ""
+
+
+def _summary(times: list, yard: float) -> str:
+    times = sorted(times)
+    return (f"median {times[len(times) // 2]:.1f} s, largest {times[-1]:.1f} s (target < {TARGET_S:.0f} s: "
+            f"{'met' if times[-1] < TARGET_S else 'NOT met'}); median / yardstick {times[len(times) // 2] / yard:.0f}, "
+            f"largest / yardstick {times[-1] / yard:.0f}")
+
+
+def _same(a: dict, b: dict, rel: float = 1e-6) -> bool:
+    """The same named effects and rmse_final equal to ``rel`` relative."""
+    ra, rb = float(a["rmse_final"]), float(b["rmse_final"])
+    return a["added_effects"] == b["added_effects"] and abs(ra - rb) <= rel * max(abs(ra), abs(rb))
+
+
+def _compare(records, out: Path, tether: str, baseline: str, yard: float) -> int:
+    """Each record with the baseline and this checkout's tether, in alternating order."""
+    times = {"baseline": [], "this": []}
+    agree = 0
+    for i, (name, stem, hidden) in enumerate(records):
+        runs = {}
+        order = [("baseline", baseline), ("this", tether)]
+        for label, exe in (order if i % 2 == 0 else order[::-1]):
+            runs[label] = _discover(exe, stem, out / f"{name}.{label}.discovery.json")
+        (tb, db, eb), (tt, dt, et) = runs["baseline"], runs["this"]
+        if db is None or dt is None:
+            print(f"{name:36s} FAILED: baseline {eb or 'ok'}; this {et or 'ok'}")
+            continue
+        times["baseline"].append(tb)
+        times["this"].append(tt)
+        same = _same(db, dt)
+        agree += same
+        rel = abs(db["rmse_final"] - dt["rmse_final"]) / max(abs(db["rmse_final"]), 1e-300)
+        print(f"{name:36s} hidden {hidden:28s} named {','.join(dt['added_effects']) or '-':28s} "
+              f"rmse/noise {dt['rmse_final_over_noise']:5.2f}  baseline {tb:6.1f} s  this {tt:6.1f} s  "
+              f"ratio {tt / tb:4.2f}  {'same' if same else 'DIFFERENT'} (rmse_final rel. diff {rel:.1e}"
+              f"{'' if db['added_effects'] == dt['added_effects'] else '; baseline named ' + ','.join(db['added_effects'])})",
+              flush=True)
+    if not times["this"]:
+        return 1
+    n = len(times["this"])
+    print(f"\nyardstick {1e3 * yard:.1f} ms; {n} records")
+    print(f"baseline: {_summary(times['baseline'], yard)}")
+    print(f"this:     {_summary(times['this'], yard)}")
+    print(f"results the same (added_effects, rmse_final to 1e-6) on {agree} of {n}; load average "
+          f"{os.getloadavg()[0]:.2f} at the end")
+    return 0 if agree == n else 1
 
 if __name__ == "__main__":
     sys.exit(main())
