@@ -45,6 +45,7 @@ import numpy as np
 
 from . import identify_native as idn
 from . import nuisance as NZ
+from .blas import in_one_blas_thread
 from .models import (IWAN_EPS, IWAN_EPS_FIT, IWAN_K, IWAN_K_FIT, ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model,
                      write_params)
 from .run import _input_pieces, input_interpolation, record_period
@@ -970,6 +971,7 @@ def _positive_floor(name: str, scales: dict) -> float:
     return d if d > 0 else 1e-6
 
 
+@in_one_blas_thread
 def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] | None = None,
                start: Mapping[str, float] | None = None, fixed: Mapping[str, float] | None = None,
                progress: Callable[[FitProgress], object] | None = None, n_starts: int = 1,

@@ -164,6 +164,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; ``argv`` None means the process is ours (the console script,
     ``python -m tether``), so that a signal may end it at once (see :func:`_signal_thread`)."""
     own_process = argv is None
+    if own_process:
+        from ..blas import limit_process
+
+        limit_process()         # one BLAS thread (docs/speed.md), before anything loads numpy
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     old_handlers = _install_signal_handlers(own_process)

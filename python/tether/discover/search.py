@@ -11,6 +11,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..blas import in_one_blas_thread
 from ..models import IWAN_K, parse_model
 from ..traces import Trace
 from .document import _evidence, _slack_seen_by, ordinal
@@ -51,6 +52,7 @@ def _refit_without_slack(trace: Trace, cur: ModelFit, results: Sequence, sigma: 
     return None
 
 
+@in_one_blas_thread
 def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None] | None = None,
              max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET,
              mass_band: float | None = None, free_nuisance: bool = True) -> Discovery:
