@@ -1,0 +1,59 @@
+"""initial_estimate is computed once per (data, model, fixed values): a discovery asks for the
+same starts many times (docs/speed.md). The remembered answer must be the one a fresh computation
+gives, for the data and not for the file name, and must not be changed by a caller."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tether import fit as F
+from tether.traces import read_trace
+
+REF = Path(__file__).resolve().parents[1] / "reference_results"
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """Counts the payload estimates actually computed."""
+    calls = []
+    real = F._payload_estimate
+
+    def counting(trace, spec):
+        calls.append(trace.name)
+        return real(trace, spec)
+    monkeypatch.setattr(F, "_payload_estimate", counting)
+    monkeypatch.setattr(F, "_ESTIMATES", {})
+    return calls
+
+
+def test_the_same_data_read_twice_is_estimated_once_and_as_a_fresh_computation(counted):
+    a = read_trace(REF / "freevib_full_0p1669")
+    b = read_trace(REF / "freevib_full_0p1669")        # another object, the same data
+    first = F.initial_estimate([a], "linear+boucwen")
+    second = F.initial_estimate([b], "linear+boucwen")
+    assert len(counted) == 1
+    fresh = F.initial_estimate.__wrapped__([a], F.parse_model("linear+boucwen"))
+    assert first == second == fresh
+
+
+def test_other_data_another_model_or_other_fixed_values_are_estimated_anew(counted):
+    a = read_trace(REF / "freevib_full_0p1669")
+    F.initial_estimate([a], "linear")
+    F.initial_estimate([a], "cubic")
+    F.initial_estimate([a], "linear", {"c0": 1.0})
+    moved = dataclasses.replace(a, measured=a.measured + np.r_[1e-9, np.zeros(len(a.measured) - 1)])
+    got = F.initial_estimate([moved], "linear")
+    assert len(counted) == 4
+    assert got == F.initial_estimate.__wrapped__([moved], F.parse_model("linear"))
+
+
+def test_a_caller_changing_its_answer_does_not_change_the_next(counted):
+    a = read_trace(REF / "freevib_simplified_0p1669")
+    first = F.initial_estimate([a], "linear")
+    first["EA"] = -1.0
+    assert F.initial_estimate([a], "linear")["EA"] > 0
+    assert len(counted) == 1
