@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -85,7 +86,7 @@ def main(argv=None) -> int:
         return _compare(records, out, tether, a.baseline, yard)
     times = []
     for name, stem, hidden in records:
-        secs, doc, err = _discover(tether, stem, out / f"{name}.discovery.json")
+        secs, doc, err, _cpu = _discover(tether, stem, out / f"{name}.discovery.json")
         if doc is None:
             print(f"{name:36s} FAILED: {err}")
             continue
@@ -100,13 +101,21 @@ def main(argv=None) -> int:
 
 
 def _discover(tether: str, stem: Path, res: Path):
-    """(wall seconds, OUT.json document or None, error line) of one `tether discover` run."""
+    """(wall seconds, OUT.json document or None, error line, CPU seconds) of one `tether discover` run."""
+    c0 = _children_cpu()
     t0 = time.perf_counter()
     p = subprocess.run([tether, "discover", str(stem), "--json", str(res)], capture_output=True, text=True)
     secs = time.perf_counter() - t0
+    cpu = _children_cpu() - c0
     if p.returncode != 0:
-        return secs, None, f"({p.returncode}) {p.stderr.strip().splitlines()[-1:]}"
-    return secs, json.loads(res.read_text()), ""
+        return secs, None, f"({p.returncode}) {p.stderr.strip().splitlines()[-1:]}", cpu
+    return secs, json.loads(res.read_text()), "", cpu
+
+
+def _children_cpu() -> float:
+    """User + system CPU seconds of the finished child processes so far (all their threads)."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def _summary(times: list, yard: float) -> str:
@@ -125,24 +134,28 @@ def _same(a: dict, b: dict, rel: float = 1e-6) -> bool:
 def _compare(records, out: Path, tether: str, baseline: str, yard: float) -> int:
     """Each record with the baseline and this checkout's tether, in alternating order."""
     times = {"baseline": [], "this": []}
+    cpus = {"baseline": [], "this": []}
     agree = 0
     for i, (name, stem, hidden) in enumerate(records):
         runs = {}
         order = [("baseline", baseline), ("this", tether)]
         for label, exe in (order if i % 2 == 0 else order[::-1]):
             runs[label] = _discover(exe, stem, out / f"{name}.{label}.discovery.json")
-        (tb, db, eb), (tt, dt, et) = runs["baseline"], runs["this"]
+        (tb, db, eb, cb), (tt, dt, et, ct) = runs["baseline"], runs["this"]
         if db is None or dt is None:
             print(f"{name:36s} FAILED: baseline {eb or 'ok'}; this {et or 'ok'}")
             continue
         times["baseline"].append(tb)
         times["this"].append(tt)
+        cpus["baseline"].append(cb)
+        cpus["this"].append(ct)
         same = _same(db, dt)
         agree += same
         rel = abs(db["rmse_final"] - dt["rmse_final"]) / max(abs(db["rmse_final"]), 1e-300)
         print(f"{name:36s} hidden {hidden:28s} named {','.join(dt['added_effects']) or '-':28s} "
-              f"rmse/noise {dt['rmse_final_over_noise']:5.2f}  baseline {tb:6.1f} s  this {tt:6.1f} s  "
-              f"ratio {tt / tb:4.2f}  {'same' if same else 'DIFFERENT'} (rmse_final rel. diff {rel:.1e}"
+              f"rmse/noise {dt['rmse_final_over_noise']:5.2f}  wall: baseline {tb:6.1f} s this {tt:6.1f} s "
+              f"ratio {tt / tb:4.2f}  CPU: baseline {cb:6.1f} s this {ct:6.1f} s ratio {ct / cb:4.2f}  "
+              f"{'same' if same else 'DIFFERENT'} (rmse_final rel. diff {rel:.1e}"
               f"{'' if db['added_effects'] == dt['added_effects'] else '; baseline named ' + ','.join(db['added_effects'])})",
               flush=True)
     if not times["this"]:
@@ -151,6 +164,12 @@ def _compare(records, out: Path, tether: str, baseline: str, yard: float) -> int
     print(f"\nyardstick {1e3 * yard:.1f} ms; {n} records")
     print(f"baseline: {_summary(times['baseline'], yard)}")
     print(f"this:     {_summary(times['this'], yard)}")
+    for label in ("baseline", "this"):
+        c = sorted(cpus[label])
+        print(f"{label + ' CPU:':14s} median {c[len(c) // 2]:.1f} s, largest {c[-1]:.1f} s (user + system, all threads)")
+    print("wall ratio this / baseline: median {:.2f}; CPU ratio: median {:.2f}".format(
+        sorted(t / b for t, b in zip(times["this"], times["baseline"]))[n // 2],
+        sorted(t / b for t, b in zip(cpus["this"], cpus["baseline"]))[n // 2]))
     print(f"results the same (added_effects, rmse_final to 1e-6) on {agree} of {n}; load average "
           f"{os.getloadavg()[0]:.2f} at the end")
     return 0 if agree == n else 1

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.linalg  # noqa: F401 - both BLAS libraries loaded, numpy's and scipy's, as a fit loads them
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from tether import blas
@@ -25,7 +26,6 @@ def _blas_threads() -> dict:
 
 
 def test_a_fit_runs_on_one_blas_thread_and_gives_the_callers_setting_back():
-    import scipy.linalg  # noqa: F401 - both BLAS libraries loaded, as a fit loads them
     from tether.fit import fit_traces
 
     seen = []
@@ -84,3 +84,31 @@ def test_the_results_do_not_depend_on_the_number_of_threads():
         b = initial_estimate([tr], "full")
     assert a.keys() == b.keys()
     assert all(np.array_equal(a[k], b[k]) for k in a)
+
+
+def test_threads_started_inside_share_the_limit_and_a_fit_in_another_thread_leaves_the_setting_alone():
+    """The limit is the process's: a discovery's fits, in threads it starts, run on one BLAS
+    thread; a fit a caller runs in a thread of its own changes nothing (OpenBLAS ignores counts
+    set from other threads once the main thread set one)."""
+    import threading
+
+    from tether.fit import fit_traces
+
+    seen = {}
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        with blas.one_blas_thread():
+            t = threading.Thread(target=lambda: seen.setdefault("inside", set(_blas_threads().values())))
+            t.start()
+            t.join(60)
+
+        def worker():
+            fit_traces([REF / "freevib_simplified_0p1669"], "linear",
+                       progress=lambda p: seen.setdefault("worker", set(_blas_threads().values())))
+        t = threading.Thread(target=worker)
+        t.start()
+        t.join(300)
+        after = _blas_threads()
+    assert seen["inside"] == {1}
+    assert seen["worker"] == {2}
+    assert after == before

@@ -17,6 +17,7 @@ from __future__ import annotations
 import functools
 import os
 import sys
+import threading
 from contextlib import contextmanager
 from typing import Callable, Iterator, TypeVar
 
@@ -46,9 +47,11 @@ def one_blas_thread() -> Iterator[None]:
     """Run the block with one thread in numpy's and scipy's BLAS, then restore what was there.
 
     Loads scipy.linalg first (every fit needs it: the filters, splines and optimizers import
-    it), so that its BLAS is limited too. Without threadpoolctl, or in a process the command line
-    already limited, it does nothing."""
-    if _process_limited:
+    it), so that its BLAS is limited too. Acts in the main thread only: the limit is the
+    process's, which the threads a block starts (a discovery's fits) share, and OpenBLAS ignores
+    a count set from another thread once the main thread has set one. Without threadpoolctl, or
+    in a process the command line already limited, it does nothing."""
+    if _process_limited or threading.current_thread() is not threading.main_thread():
         yield
         return
     try:
