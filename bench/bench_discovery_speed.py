@@ -13,9 +13,11 @@ machines can be compared as ratios.
     python bench/bench_discovery_speed.py [--out DIR] [--only SUBSTRING] [--baseline TETHER]
 
 --baseline TETHER: also run another `tether` executable (an older checkout's command line) on each
-record, in alternating order, and print both times and whether the results agree: the same
-added_effects and rmse_final equal to 1e-6 relative (the check of a change meant to leave the
-results as they were); the medians and largest times of both then stand beside one yardstick.
+record, in alternating order, and print both times (wall, and CPU of all threads, which a loaded
+machine moves less) and whether the results agree: the same added_effects and rmse_final equal to
+1e-6 relative (the check of a change meant to leave the results as they were); the medians and
+largest times of both then stand beside one yardstick. --tether TETHER: the executable to time
+(default: the one beside this Python). docs/speed.md has the figures.
 """
 from __future__ import annotations
 

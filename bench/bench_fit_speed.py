@@ -8,16 +8,22 @@ as a user would run it: `tether fit REC --model full --out P.json`. Printed: the
 every run, their median, the fitted RMS and the machine yardstick of bench_discovery_speed.py
 measured in the same run, so that figures from a loaded machine compare as ratios.
 
-    python bench/bench_fit_speed.py [--runs 3] [--out DIR] [--profile FILE.prof]
+    python bench/bench_fit_speed.py [--runs 3] [--out DIR] [--profile FILE.prof] [--baseline TETHER]
 
 --profile runs the fit once more in this process under cProfile and writes the statistics there
 (read them with `python -m pstats FILE.prof`).
+--baseline TETHER: another `tether` executable (an older checkout's command line) runs beside this
+one, in alternating order, with wall and CPU times of both; then both fit every bundled record
+(reference_results/*: the model that generated it; datasets/boucwen/train_multisine:
+linear+boucwen) and the fitted parameter files are compared: the same values to 1e-6 relative,
+and whether they are the same bits (the check of a change meant to leave results as they were).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -51,15 +57,71 @@ def write_record(folder: Path) -> Path:
     return stem
 
 
-def run_cli(stem: Path, out: Path) -> tuple[float, dict]:
-    tether = str(Path(sys.executable).with_name("tether"))
+def run_cli(stem: Path, out: Path, tether: str | None = None, model: str = MODEL) -> tuple[float, dict, float]:
+    """(wall seconds, the fitted parameter file, CPU seconds of the run) of one `tether fit`."""
+    tether = tether or str(Path(sys.executable).with_name("tether"))
+    c0 = _children_cpu()
     t0 = time.perf_counter()
-    p = subprocess.run([tether, "-q", "fit", str(stem), "--model", MODEL, "--out", str(out)],
+    p = subprocess.run([tether, "-q", "fit", str(stem), "--model", model, "--out", str(out)],
                        capture_output=True, text=True)
     secs = time.perf_counter() - t0
     if p.returncode != 0:
-        raise SystemExit(f"tether fit failed ({p.returncode}): {p.stderr.strip()}")
-    return secs, json.loads(out.read_text())
+        raise SystemExit(f"{tether} fit {stem.name} failed ({p.returncode}): {p.stderr.strip()}")
+    return secs, json.loads(out.read_text()), _children_cpu() - c0
+
+
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def bundled_records() -> list[tuple[Path, str]]:
+    """(stem, model) of every bundled record: the reference results with the model that made them,
+    the Bouc-Wen benchmark's training record with linear+boucwen."""
+    out = []
+    for meta in sorted((REPO / "reference_results").glob("*.json")):
+        doc = json.loads(meta.read_text())
+        model = (doc.get("synthetic") or {}).get("model")
+        if doc.get("format") == "tether-trace/1" and model:
+            out.append((meta.with_suffix(""), model))
+    out.append((REPO / "datasets" / "boucwen" / "train_multisine", "linear+boucwen"))
+    return out
+
+
+def _agree(a: dict, b: dict, rel: float = 1e-6) -> tuple[bool, bool]:
+    """(every fitted value and the RMS equal to ``rel`` relative, the same bits)."""
+    keys = set(a["parameters"]) | set(b["parameters"])
+    pairs = [(a["rms"], b["rms"])] + [(a["parameters"].get(k), b["parameters"].get(k)) for k in keys]
+    close = all(x is not None and y is not None and abs(x - y) <= rel * max(abs(x), abs(y)) for x, y in pairs)
+    return close, a["parameters"] == b["parameters"] and a["rms"] == b["rms"]
+
+
+def compare(stem: Path, out: Path, baseline: str, runs: int, yard: float) -> int:
+    """This checkout's tether fit against the baseline's: times, then the bundled records' results."""
+    tether = str(Path(sys.executable).with_name("tether"))
+    got = {"baseline": [], "this": []}
+    for i in range(runs):
+        order = [("baseline", baseline), ("this", tether)]
+        for label, exe in (order if i % 2 == 0 else order[::-1]):
+            secs, doc, cpu = run_cli(stem, out / f"{label}{i}.json", exe)
+            got[label].append((secs, cpu, doc))
+            print(f"run {i + 1} {label:8s}: {secs:6.2f} s wall, {cpu:6.2f} s CPU, RMS {doc['rms']:.9g}", flush=True)
+    med = {k: (statistics.median(x[0] for x in v), statistics.median(x[1] for x in v)) for k, v in got.items()}
+    for k, (w, c) in med.items():
+        print(f"{k:8s}: median {w:.2f} s wall ({w / yard:.0f} yardsticks), {c:.2f} s CPU")
+    print(f"this / baseline: wall {med['this'][0] / med['baseline'][0]:.2f}, CPU {med['this'][1] / med['baseline'][1]:.2f}")
+    same = 0
+    records = bundled_records()
+    print(f"\n`tether fit` of the {len(records)} bundled records, baseline and this:")
+    for rec, model in records:
+        tb, db, _ = run_cli(rec, out / f"{rec.name}.baseline.json", baseline, model)
+        tt, dt, _ = run_cli(rec, out / f"{rec.name}.this.json", tether, model)
+        close, bits = _agree(db, dt)
+        same += close
+        print(f"{rec.name:28s} {model:18s} RMS {dt['rms']:.6g}  {tb:6.1f} s -> {tt:6.1f} s  "
+              f"{'same bits' if bits else 'equal to 1e-6' if close else 'DIFFERENT'}", flush=True)
+    print(f"results the same on {same} of {len(records)}")
+    return 0 if same == len(records) else 1
 
 
 def profile(stem: Path, path: Path) -> None:
@@ -77,6 +139,7 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=3, help="command-line runs to time (default 3)")
     ap.add_argument("--out", default=None, help="directory for the record and results (default: a temporary one)")
     ap.add_argument("--profile", default=None, metavar="FILE.prof", help="also profile one run in-process")
+    ap.add_argument("--baseline", default=None, metavar="TETHER", help="another tether executable to compare with")
     a = ap.parse_args(argv)
     from bench_discovery_speed import _yardstick
 
@@ -86,9 +149,11 @@ def main(argv=None) -> int:
     yard = _yardstick()
     print(f"machine yardstick: one FMU simulation of the demo record {1e3 * yard:.1f} ms; "
           f"load average {os.getloadavg()[0]:.2f} at the start")
+    if a.baseline:
+        return compare(stem, out, a.baseline, a.runs, yard)
     times = []
     for i in range(a.runs):
-        secs, doc = run_cli(stem, out / f"fit{i}.json")
+        secs, doc, _cpu = run_cli(stem, out / f"fit{i}.json")
         times.append(secs)
         print(f"run {i + 1}: {secs:6.2f} s wall, RMS {doc['rms']:.9g}", flush=True)
     med = statistics.median(times)
