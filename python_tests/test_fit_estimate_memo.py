@@ -57,3 +57,16 @@ def test_a_caller_changing_its_answer_does_not_change_the_next(counted):
     first["EA"] = -1.0
     assert F.initial_estimate([a], "linear")["EA"] > 0
     assert len(counted) == 1
+
+
+def test_every_field_of_the_data_counts_and_the_file_name_does_not(counted):
+    """Fields a trace gains later are in the key without a change here: each one is tried."""
+    a = read_trace(REF / "freevib_full_0p1669")
+    F.initial_estimate([a], "linear")
+    F.initial_estimate([dataclasses.replace(a, stem=a.stem.with_name("other"), description="another")], "linear")
+    assert len(counted) == 1
+    changed = {"length_m": a.length_m * 1.01, "payload_mass_kg": a.payload_mass_kg * 1.01,
+               "gravity_m_s2": 9.8, "initial_displacement_m": a.initial_displacement_m * 0.99}
+    for name, value in changed.items():
+        F.initial_estimate([dataclasses.replace(a, **{name: value})], "linear")
+    assert len(counted) == 1 + len(changed)

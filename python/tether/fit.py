@@ -36,6 +36,7 @@ How a fit runs
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import hashlib
 import json
@@ -807,15 +808,26 @@ def _cubic_inverse(params: Mapping[str, float]):
     return inv
 
 
+#: Trace fields that say where a trace was read from or describe it, not what it holds
+_NOT_DATA = ("stem", "csv_path", "json_path", "description")
+
+
 def _trace_digest(trace: Trace) -> bytes:
-    """A digest of everything a trace's data say (arrays, metadata), not of where it was read from."""
+    """A digest of everything a trace holds (every field's value, arrays by their bytes), not of
+    where it was read from."""
     h = hashlib.blake2b(digest_size=20)
-    for a in (trace.time, trace.input, trace.measured):
-        h.update(b"-" if a is None else np.ascontiguousarray(a, dtype=float).tobytes() + b"|")
-    h.update(repr((trace.experiment, trace.length_m, trace.payload_mass_kg, trace.gravity_m_s2,
-                   trace.initial_displacement_m, trace.initial_velocity_m_s, trace.periodic_samples,
-                   trace.input_column, trace.measured_column)).encode())
-    h.update(json.dumps(trace.meta, sort_keys=True, default=repr).encode())
+    for f in dataclasses.fields(trace):
+        if f.name in _NOT_DATA:
+            continue
+        v = getattr(trace, f.name)
+        h.update(f.name.encode() + b"=")
+        if isinstance(v, np.ndarray):
+            h.update(str(v.dtype).encode() + np.ascontiguousarray(v).tobytes())
+        elif isinstance(v, dict):
+            h.update(json.dumps(v, sort_keys=True, default=repr).encode())
+        else:
+            h.update(repr(v).encode())
+        h.update(b"|")
     return h.digest()
 
 
