@@ -8,7 +8,7 @@ as a user would run it: `tether fit REC --model full --out P.json`. Printed: the
 every run, their median, the fitted RMS and the machine yardstick of bench_discovery_speed.py
 measured in the same run, so that figures from a loaded machine compare as ratios.
 
-    python bench/bench_fit_speed.py [--runs 3] [--out DIR] [--profile FILE.prof] [--baseline TETHER]
+    python bench/bench_fit_speed.py [--runs 3] [--out DIR] [--profile FILE.prof] [--baseline TETHER] [--tether TETHER]
 
 --profile runs the fit once more in this process under cProfile and writes the statistics there
 (read them with `python -m pstats FILE.prof`).
@@ -96,9 +96,8 @@ def _agree(a: dict, b: dict, rel: float = 1e-6) -> tuple[bool, bool]:
     return close, a["parameters"] == b["parameters"] and a["rms"] == b["rms"]
 
 
-def compare(stem: Path, out: Path, baseline: str, runs: int, yard: float) -> int:
-    """This checkout's tether fit against the baseline's: times, then the bundled records' results."""
-    tether = str(Path(sys.executable).with_name("tether"))
+def compare(stem: Path, out: Path, tether: str, baseline: str, runs: int, yard: float) -> int:
+    """tether fit against the baseline's: times, then the bundled records' results."""
     got = {"baseline": [], "this": []}
     for i in range(runs):
         order = [("baseline", baseline), ("this", tether)]
@@ -140,6 +139,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None, help="directory for the record and results (default: a temporary one)")
     ap.add_argument("--profile", default=None, metavar="FILE.prof", help="also profile one run in-process")
     ap.add_argument("--baseline", default=None, metavar="TETHER", help="another tether executable to compare with")
+    ap.add_argument("--tether", default=str(Path(sys.executable).with_name("tether")), metavar="TETHER",
+                    help="the tether executable to time (default: the one beside this Python)")
     a = ap.parse_args(argv)
     from bench_discovery_speed import _yardstick
 
@@ -150,10 +151,10 @@ def main(argv=None) -> int:
     print(f"machine yardstick: one FMU simulation of the demo record {1e3 * yard:.1f} ms; "
           f"load average {os.getloadavg()[0]:.2f} at the start")
     if a.baseline:
-        return compare(stem, out, a.baseline, a.runs, yard)
+        return compare(stem, out, a.tether, a.baseline, a.runs, yard)
     times = []
     for i in range(a.runs):
-        secs, doc, _cpu = run_cli(stem, out / f"fit{i}.json")
+        secs, doc, _cpu = run_cli(stem, out / f"fit{i}.json", a.tether)
         times.append(secs)
         print(f"run {i + 1}: {secs:6.2f} s wall, RMS {doc['rms']:.9g}", flush=True)
     med = statistics.median(times)
