@@ -43,7 +43,7 @@ def slack_forced(tmp_path_factory):
 def test_a_hidden_mass_and_an_offset_are_not_named_as_effects(slack_forced, run_cli, tmp_path):
     stem, tr = slack_forced
     out = tmp_path / "d.json"
-    status, stdout, err = run_cli("discover", stem, "--json", out)
+    status, stdout, err = run_cli("discover", stem, "--json", out, "--nuisance")
     assert status == 0, err
     doc = json.loads(out.read_text())
     sigma = tr.meta["hidden"]["noise_sigma_m"]

@@ -24,7 +24,7 @@ parameter file of the discovered model: `tether simulate OTHER.csv --params OUT.
 flagged windows, and the gap shrinking step by step.
 --budget SECONDS bounds the run (default 900 s; long records at high rates with several effects
 can need more): a step whose fits are not all done when it is spent adds nothing.
-Every fit frees the record's nuisance parameters from the start model on (the offset of the
+--nuisance: every fit frees the record's nuisance parameters from the start model on (the offset of the
 measured column; a forced record's initial state and effective mass, kept within
 payload_mass_kg * (1 +- --mass-band REL), default the trace's mass_uncertainty_rel, else 0.3;
 a free vibration's release point): OUT.json's `nuisance` section reports each with its interval
@@ -52,7 +52,10 @@ def add_arguments(parser) -> None:
     add_scheduler_argument(parser)
     parser.add_argument("--report", metavar="DIR", help="write DIR/index.html with the story in plots")
     from .common import add_mass_band_argument
-    add_mass_band_argument(parser, "the effective mass (freed on forced records)")
+    add_mass_band_argument(parser, "the effective mass (freed on forced records; implies --nuisance)")
+    parser.add_argument("--nuisance", action="store_true",
+                        help="free the record's nuisance parameters in every fit: the measured column's offset, "
+                             "a forced record's initial state and effective mass (docs/nuisance-discovery.md)")
     parser.add_argument("--budget", metavar="SECONDS", type=positive_number("seconds"), default=None,
                         help="bound the run (default 900 s): a step not judged to the end when it is spent "
                              "adds nothing, and the account says so")
@@ -82,7 +85,8 @@ def run(args) -> int:
     budget = DEFAULT_BUDGET if args.budget is None else args.budget
     with Progress("discover", budget, unit="s", deadline=True) as bar:
         try:
-            d = discover(trace, start=args.start, progress=bar.line, budget=budget, mass_band=mass_band)
+            d = discover(trace, start=args.start, progress=bar.line, budget=budget, mass_band=mass_band,
+                         free_nuisance=args.nuisance or mass_band is not None)
         except DiscoveryError as e:
             raise CLIError(str(e), RUN_ERROR) from None
         except RuntimeError as e:

@@ -17,11 +17,13 @@ SUMMARY_COLUMNS = ("trace", "experiment", "added_effects", "final_model", "noise
                    "rmse_final", "final_over_noise", "stop_reason")
 
 
-def discover_record(trace, start: str, budget: float | None, mass_band: float | None = None) -> dict:
+def discover_record(trace, start: str, budget: float | None, mass_band: float | None = None,
+                    free_nuisance: bool = False) -> dict:
     """One record's discovery document (runs on a worker)."""
     from ..discover import discover, discovery_document
 
-    d = discover(trace, start=start, mass_band=mass_band, **({} if budget is None else {"budget": budget}))
+    d = discover(trace, start=start, mass_band=mass_band, free_nuisance=free_nuisance or mass_band is not None,
+                 **({} if budget is None else {"budget": budget}))
     return discovery_document(d)
 
 
@@ -52,7 +54,7 @@ def run_each(args) -> int:
         docs[todo[k]] = doc
 
     if todo:
-        cluster_map(args.scheduler, discover_record, [(traces[i], args.start, args.budget, mass_band) for i in todo],
+        cluster_map(args.scheduler, discover_record, [(traces[i], args.start, args.budget, mass_band, args.nuisance) for i in todo],
                     "record",
                     each=finished)
     rows = [summary_row(t.name, t.experiment, docs[i]) for i, t in enumerate(traces)]

@@ -55,12 +55,12 @@ def _refit_without_slack(trace: Trace, cur: ModelFit, results: Sequence, sigma: 
 @in_one_blas_thread
 def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None] | None = None,
              max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET,
-             mass_band: float | None = None, free_nuisance: bool = True) -> Discovery:
+             mass_band: float | None = None, free_nuisance: bool = False) -> Discovery:
     """Run the discovery loop on one trace (see the package docstring). ``progress`` receives one
     line per stage. ``budget`` [s] bounds the run: a step whose fits are not all done when it is
-    spent adds nothing, and the discovery stops with the model it has, saying so. Every fit frees
-    the record's nuisance parameters (discover.nuisance.nuisance_parameters) unless
-    ``free_nuisance`` is False; ``mass_band``: the effective mass's band, relative to
+    spent adds nothing, and the discovery stops with the model it has, saying so. With
+    ``free_nuisance`` every fit frees the record's nuisance parameters
+    (discover.nuisance.nuisance_parameters); ``mass_band``: the effective mass's band, relative to
     payload_mass_kg (default: the trace's mass_uncertainty_rel, else
     tether.nuisance.DEFAULT_MASS_BAND; 0 = the mass is exact)."""
     trace = copy.copy(trace)
