@@ -117,7 +117,7 @@ def compare(stem: Path, out: Path, tether: str, baseline: str, runs: int, yard: 
         tt, dt, _ = run_cli(rec, out / f"{rec.name}.this.json", tether, model)
         close, bits = _agree(db, dt)
         same += close
-        print(f"{rec.name:28s} {model:18s} RMS {dt['rms']:.6g}  {tb:6.1f} s -> {tt:6.1f} s  "
+        print(f"{rec.name:28s} {model:18s} RMS {db['rms']:.6g} -> {dt['rms']:.6g}  {tb:6.1f} s -> {tt:6.1f} s  "
               f"{'same bits' if bits else 'equal to 1e-6' if close else 'DIFFERENT'}", flush=True)
     print(f"results the same on {same} of {len(records)}")
     return 0 if same == len(records) else 1

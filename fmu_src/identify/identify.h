@@ -120,7 +120,9 @@ typedef struct {
     double xtol;             /* stop when the scaled step < xtol (default 1e-9) */
     double gtol;             /* stop when |J^T r|_inf / cost < gtol (default 1e-12) */
     double fd_step;          /* forward-difference step in scaled parameters (default 1e-3) */
-    int central_differences; /* 1: central differences (twice the simulations) */
+    int central_differences; /* 0: forward differences; 1: central differences throughout (twice
+                                the simulations); 2 (default): forward until the last stage stops,
+                                then central differences polish the optimum and give the statistics */
     int n_starts;            /* several starts (1 = only the given start; default 1) */
     double start_spread;     /* random starts: uniform in the box when it is finite in the scaled
                                 coordinates, else start +- start_spread in them (default 0.5) */

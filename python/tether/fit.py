@@ -1177,6 +1177,7 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
             # an intermediate stage only brings the start near the optimum: a looser stop
             o.setdefault("max_iterations", 20)
             o["ftol"] = max(float(o.get("ftol", 1e-10)), 1e-4)
+            o.setdefault("central_differences", idn.FORWARD)
         if si == len(stages) - 1 and n_starts > 1:
             o["n_starts"] = int(n_starts)
             o.setdefault("start_spread", 0.3)

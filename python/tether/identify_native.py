@@ -35,6 +35,10 @@ KIND_REAL, KIND_SWITCH, KIND_INPUT, KIND_MEASUREMENT = 0, 1, 2, 3
 #: times the recorded ones) and the measured column is the model's output + offset_measured
 MEASUREMENT_DEFAULTS = {"offset_measured": 0.0, "offset_input": 0.0, "input_gain": 1.0}
 SCALE = {"auto": 0, "log": 1, "linear": 2}
+#: kt_fit_options.central_differences: forward differences throughout (FORWARD), central throughout
+#: (CENTRAL), or forward until the last stage stops and then central differences polish the optimum
+#: and give the statistics (POLISH_CENTRAL, the engine's default; docs/fit-convergence.md)
+FORWARD, CENTRAL, POLISH_CENTRAL = 0, 1, 2
 
 _DP = C.POINTER(C.c_double)
 _IP = C.POINTER(C.c_int)
