@@ -174,8 +174,9 @@ class _DirectResult:
     ci95: dict = field(default_factory=dict)
 
 
-#: engine options for every discovery fit (e.g. n_threads)
-ENGINE_OPTIONS: dict = {}
+#: engine options for every discovery fit (e.g. n_threads): the search compares candidates with
+#: forward differences; its final fit polishes the optimum with central ones (Search.final_fit)
+ENGINE_OPTIONS: dict = {"central_differences": 0}
 
 
 #: independent fits run this many side by side, each on one thread: the candidates of a step, or

@@ -187,8 +187,7 @@ class Search:
             if not self.sweep(sweep):
                 break
         self.last_stages()
-        if self.every > 1:
-            self.to_whole_record()
+        self.final_fit()
         return Discovery(trace=self.whole, noise=self.noise, start_model=self.spec.canonical, fits=self.fits,
                          steps=self.steps, stop_reason=self.stop, seconds=time.perf_counter() - self.t_begin,
                          heldout_start=float(self.trace.time[self.first]), removals=self.removals,
@@ -546,19 +545,23 @@ class Search:
             self.reshape(set(self.cur.effects) - {"hysteresis"})
         return swapped
 
-    def to_whole_record(self) -> None:
-        """A search on every k-th sample: the final model fitted to the whole record (from the
-        searched optimum, WHOLE_RECORD_ITERATIONS), every error carried to the whole record."""
+    def final_fit(self) -> None:
+        """The final model fitted once more from the searched optimum (WHOLE_RECORD_ITERATIONS), with
+        central differences, which reach the least-squares point and its intervals where the
+        search's forward differences stop short along a weakly determined direction (a mass against
+        a stiffness); on the whole record where the search used every k-th sample, every error then
+        carried to the whole record."""
+        from ..identify_native import POLISH_CENTRAL
         cur, fitted = self.cur, None
         if not self.budget_hit:
-            self.say(f"fitting {cur.label} to the whole record")
+            self.say(f"fitting {cur.label} to the whole record" if self.every > 1 else f"polishing the fit of {cur.label}")
             fitted = fit_model(self.whole, cur.spec, cur.effects, [cur.params], _scales(self.whole),
                                time_cap=self.every * self.cap, extra=cur.shape,
                                held=self.shape_held + _replaced(cur.shape), deadline=self.deadline,
-                               max_iterations=WHOLE_RECORD_ITERATIONS, nuisance=self.nuisance)
+                               max_iterations=WHOLE_RECORD_ITERATIONS, nuisance=self.nuisance,
+                               central_differences=POLISH_CENTRAL)
             if not fitted.ok:
-                self.stop += (f"; the fit to the whole record failed ({fitted.message}): the searched record's "
-                              "values are kept")
+                self.stop += (f"; the final fit failed ({fitted.message}): the searched values are kept")
                 fitted = None
         self.fits = _on_whole_record(self.whole, self.fits, self.steps, self.removals, fitted)
         self.say(f"{self.fits[-1].model} on the whole record: RMS error {self.fits[-1].rms / self.sigma:.2f} x noise")
