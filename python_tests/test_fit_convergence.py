@@ -56,3 +56,33 @@ def test_the_fit_ends_at_the_least_squares_point(forced_mass_record):
     assert left < 0.2, f"a second optimizer lowers the sum of squares by {left:.2f} noise variances"
     lo, hi = r.ci95["m"]
     assert lo <= tr.meta["hidden"]["nuisance"]["m_true"] <= hi
+
+
+def _ar1(n, rho, sigma, seed):
+    """AR(1) noise of standard deviation sigma: e_t = rho e_(t-1) + sqrt(1 - rho^2) sigma w_t."""
+    w = np.random.default_rng(seed).standard_normal(n) * sigma * np.sqrt(1 - rho ** 2)
+    e = np.empty(n)
+    e[0] = sigma * np.random.default_rng(seed + 1).standard_normal()
+    for i in range(1, n):
+        e[i] = rho * e[i - 1] + w[i]
+    return e
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.8])
+def test_intervals_widen_for_residuals_correlated_in_time(tmp_path, rho):
+    """An offset of the measured column is a mean: with AR(1) noise its variance is the classic
+    sigma^2 / N times (1 + rho) / (1 - rho) (the long-run variance); the engine's block sandwich
+    must find that, and with white noise stay at the classic sigma / sqrt(N). The estimate of one
+    record scatters by about 16 % (20 blocks): the mean over six noise draws is judged."""
+    sigma = 1e-4
+    tr = he.generate("forced", set(), 1004, noise=sigma, rate=200.0, duration_s=8.0, nuisance=True,
+                     mass_factor=1.0, offset_noise=3.0, preroll_s=0.0)
+    n = len(tr.truth["measured"])
+    expected = sigma / np.sqrt(n) * np.sqrt((1 + rho) / (1 - rho))
+    ratios = []
+    for draw in range(6):
+        tr.columns[tr.measured_name] = tr.truth["measured"] + _ar1(n, rho, sigma, 11 + 2 * draw)
+        tr.write(tmp_path, f"rec{draw}")
+        r = fit_traces([read_trace(tmp_path / f"rec{draw}")], "linear", free=["EA", "c0", "offset_measured"])
+        ratios.append(r.std_error["offset_measured"] / expected)
+    assert 0.8 < np.mean(ratios) < 1.2, ratios

@@ -285,6 +285,47 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
     return R;
 }
 
+// contiguous blocks per experiment for the robust covariance: enough for a stable spread of the
+// score, few enough that each block is longer than a model error's correlation (docs/fit-convergence.md)
+constexpr int KT_ROBUST_BLOCKS = 20;
+
+// The covariance of theta from residuals that may be correlated in time (a model that misses the
+// record leaves a smooth, not a white, residual): the sandwich A^+ (sum_b g_b g_b^T) A^+ of the
+// scores g_b = J_b^T r_b of contiguous blocks of each experiment's samples (A = J^T J, its
+// pseudo-inverse from the SVD), scaled by B/(B-1) for the scores' zero sum. Never narrower than
+// the classic s^2 A^+ (cov_classic), whose variances it keeps where they are larger.
+MatrixXd robust_covariance(const Problem &P, const MatrixXd &J, const VectorXd &r, const MatrixXd &V,
+                           const VectorXd &sv, const MatrixXd &cov_classic)
+{
+    const int k = (int)J.cols();
+    if (!cov_classic.allFinite()) return cov_classic;
+    VectorXd inv2 = VectorXd::Zero(k);
+    for (int i = 0; i < k; ++i)
+        if (sv[i] > 0) inv2[i] = 1.0 / (sv[i] * sv[i]);
+    const MatrixXd Ainv = V * inv2.asDiagonal() * V.transpose();
+    MatrixXd meat = MatrixXd::Zero(k, k);
+    int off = 0, blocks = 0;
+    for (const kt::Prepared &pe : P.exps) {
+        const int n = pe.e->n;
+        const int nb = std::max(1, std::min(KT_ROBUST_BLOCKS, n / (4 * (k + 1))));
+        for (int b = 0; b < nb; ++b) {
+            const int a = (int)((long long)n * b / nb), z = (int)((long long)n * (b + 1) / nb);
+            const VectorXd g = J.middleRows(off + a, z - a).transpose() * r.segment(off + a, z - a);
+            meat += g * g.transpose();
+            ++blocks;
+        }
+        off += n;
+    }
+    if (blocks < 2) return cov_classic;
+    MatrixXd cov = Ainv * meat * Ainv * ((double)blocks / (blocks - 1));
+    VectorXd widen(k);
+    for (int j = 0; j < k; ++j)
+        widen[j] = cov(j, j) > 0 && cov_classic(j, j) > cov(j, j) ? std::sqrt(cov_classic(j, j) / cov(j, j)) : 1.0;
+    for (int j = 0; j < k; ++j)
+        if (!(cov(j, j) > 0)) { widen[j] = 1.0; cov.row(j).setZero(); cov.col(j).setZero(); cov(j, j) = cov_classic(j, j); }
+    return widen.asDiagonal() * cov * widen.asDiagonal();
+}
+
 // a converged forward-difference result continued with central differences; kept if not worse
 LMResult polish_with_central_differences(const Problem &P, const LMResult &R, const kt_fit_options &o, Counters &C,
                                          int start_no, int n_stages)
@@ -480,7 +521,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         // covariance in theta: s^2 V S^-2 V^T; in p: D cov D
         VectorXd inv2(k);
         for (int i = 0; i < k; ++i) inv2[i] = sv[i] > 0 ? 1.0 / (sv[i] * sv[i]) : std::numeric_limits<double>::infinity();
-        MatrixXd cov_th = s2 * V * inv2.asDiagonal() * V.transpose();
+        const MatrixXd cov_th = robust_covariance(P, J, best.r, V, sv, s2 * V * inv2.asDiagonal() * V.transpose());
         VectorXd D(k);
         for (int j = 0; j < k; ++j) D[j] = P.dp_dtheta(j, best.th[j]);
         MatrixXd cov = D.asDiagonal() * cov_th * D.asDiagonal();
