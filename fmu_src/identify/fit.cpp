@@ -291,18 +291,24 @@ constexpr int KT_ROBUST_BLOCKS = 20;
 
 // The covariance of theta from residuals that may be correlated in time (a model that misses the
 // record leaves a smooth, not a white, residual): the sandwich A^+ (sum_b g_b g_b^T) A^+ of the
-// scores g_b = J_b^T r_b of contiguous blocks of each experiment's samples (A = J^T J, its
+// scores g_b = J_b^T r_b of contiguous blocks of each experiment's samples (A = J^T J, A^+ its
 // pseudo-inverse from the SVD), scaled by B/(B-1) for the scores' zero sum. Never narrower than
-// the classic s^2 A^+ (cov_classic), whose variances it keeps where they are larger.
+// the classic s^2 A^+, whose variances it keeps where they are larger. A parameter that enters a
+// direction the data do not see at all (a zero singular value: an Iwan element that never slips)
+// gets an infinite variance; the others keep theirs.
 MatrixXd robust_covariance(const Problem &P, const MatrixXd &J, const VectorXd &r, const MatrixXd &V,
-                           const VectorXd &sv, const MatrixXd &cov_classic)
+                           const VectorXd &sv, double s2)
 {
     const int k = (int)J.cols();
-    if (!cov_classic.allFinite()) return cov_classic;
     VectorXd inv2 = VectorXd::Zero(k);
-    for (int i = 0; i < k; ++i)
-        if (sv[i] > 0) inv2[i] = 1.0 / (sv[i] * sv[i]);
+    std::vector<char> unseen((std::size_t)k, 0);
+    for (int i = 0; i < k; ++i) {
+        if (sv[i] > sv[0] * 1e-14) { inv2[i] = 1.0 / (sv[i] * sv[i]); continue; }
+        for (int j = 0; j < k; ++j)
+            if (std::fabs(V(j, i)) > 1e-8) unseen[(std::size_t)j] = 1;
+    }
     const MatrixXd Ainv = V * inv2.asDiagonal() * V.transpose();
+    const MatrixXd classic = s2 * Ainv;
     MatrixXd meat = MatrixXd::Zero(k, k);
     int off = 0, blocks = 0;
     for (const kt::Prepared &pe : P.exps) {
@@ -316,14 +322,19 @@ MatrixXd robust_covariance(const Problem &P, const MatrixXd &J, const VectorXd &
         }
         off += n;
     }
-    if (blocks < 2) return cov_classic;
-    MatrixXd cov = Ainv * meat * Ainv * ((double)blocks / (blocks - 1));
-    VectorXd widen(k);
+    MatrixXd cov = blocks < 2 ? classic : MatrixXd(Ainv * meat * Ainv * ((double)blocks / (blocks - 1)));
+    VectorXd widen = VectorXd::Ones(k);
     for (int j = 0; j < k; ++j)
-        widen[j] = cov(j, j) > 0 && cov_classic(j, j) > cov(j, j) ? std::sqrt(cov_classic(j, j) / cov(j, j)) : 1.0;
-    for (int j = 0; j < k; ++j)
-        if (!(cov(j, j) > 0)) { widen[j] = 1.0; cov.row(j).setZero(); cov.col(j).setZero(); cov(j, j) = cov_classic(j, j); }
-    return widen.asDiagonal() * cov * widen.asDiagonal();
+        if (cov(j, j) > 0 && classic(j, j) > cov(j, j)) widen[j] = std::sqrt(classic(j, j) / cov(j, j));
+    cov = widen.asDiagonal() * cov * widen.asDiagonal();
+    for (int j = 0; j < k; ++j) {
+        if (!unseen[(std::size_t)j] && cov(j, j) > 0) continue;
+        const double v = unseen[(std::size_t)j] ? std::numeric_limits<double>::infinity() : classic(j, j);
+        cov.row(j).setZero();
+        cov.col(j).setZero();
+        cov(j, j) = v;
+    }
+    return cov;
 }
 
 // a converged forward-difference result continued with central differences; kept if not worse
@@ -518,10 +529,8 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         const VectorXd sv = svd.singularValues();
         const MatrixXd V = svd.matrixV();
         const double smax = sv.size() ? sv[0] : 0.0;
-        // covariance in theta: s^2 V S^-2 V^T; in p: D cov D
-        VectorXd inv2(k);
-        for (int i = 0; i < k; ++i) inv2[i] = sv[i] > 0 ? 1.0 / (sv[i] * sv[i]) : std::numeric_limits<double>::infinity();
-        const MatrixXd cov_th = robust_covariance(P, J, best.r, V, sv, s2 * V * inv2.asDiagonal() * V.transpose());
+        // covariance in theta (robust_covariance); in p: D cov D
+        const MatrixXd cov_th = robust_covariance(P, J, best.r, V, sv, s2);
         VectorXd D(k);
         for (int j = 0; j < k; ++j) D[j] = P.dp_dtheta(j, best.th[j]);
         MatrixXd cov = D.asDiagonal() * cov_th * D.asDiagonal();
