@@ -86,3 +86,4 @@ def test_intervals_widen_for_residuals_correlated_in_time(tmp_path, rho):
         r = fit_traces([read_trace(tmp_path / f"rec{draw}")], "linear", free=["EA", "c0", "offset_measured"])
         ratios.append(r.std_error["offset_measured"] / expected)
     assert 0.8 < np.mean(ratios) < 1.2, ratios
+

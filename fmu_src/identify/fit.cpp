@@ -105,8 +105,24 @@ struct Counters {
     std::vector<double> history;
 };
 
+// column j of the Jacobian by a one-sided difference with this step; false where the point lies
+// outside the box or fails to simulate
+bool one_sided_column(const Problem &P, const VectorXd &th, const VectorXd &r, int j, double step, MatrixXd &J,
+                      Counters &C)
+{
+    VectorXd a = th, ra;
+    a[j] += step;
+    if (a[j] > P.hi[j] || a[j] < P.lo[j]) return false;
+    std::string err;
+    ++C.evaluations;
+    if (!P.residuals(a, ra, err)) return false;
+    J.col(j) = (ra - r) / step;
+    return true;
+}
+
 // central (or forward) difference Jacobian at theta (r = residuals there). A central pair that
-// would leave the box becomes a one-sided difference into it.
+// would leave the box becomes a one-sided difference into it; a point that fails to simulate is
+// replaced by the other side's.
 bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h, bool central, MatrixXd &J, Counters &C)
 {
     const int k = (int)th.size();
@@ -134,25 +150,29 @@ bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h,
     J.resize(r.size(), k);
     std::size_t at = 0;
     for (int j = 0; j < k; ++j) {
+        const double hj = steps[(std::size_t)j];
         if (two_sided[(std::size_t)j]) {
-            if (!ok[at] || !ok[at + 1]) return false;
-            J.col(j) = (rs[at] - rs[at + 1]) / (2 * h);
+            if (ok[at] && ok[at + 1]) J.col(j) = (rs[at] - rs[at + 1]) / (2 * h);
+            else if (ok[at]) J.col(j) = (rs[at] - r) / h;
+            else if (ok[at + 1]) J.col(j) = (r - rs[at + 1]) / h;
+            else return false;
             at += 2;
         } else {
-            if (!ok[at]) return false;
-            J.col(j) = (rs[at] - r) / steps[(std::size_t)j];
+            if (ok[at]) J.col(j) = (rs[at] - r) / hj;
+            else if (!one_sided_column(P, th, r, j, -hj, J, C)) return false;
             at += 1;
         }
     }
     return true;
 }
 
+VectorXd clip(const Problem &P, const VectorXd &th) { return th.cwiseMax(P.lo).cwiseMin(P.hi); }
+
 // central_differences = 2: forward differences find the optimum's neighbourhood cheaply, but their
 // O(h) error in a weakly determined direction (e.g. stiffness against mass along a resonance)
 // leaves LM stopped short of the least-squares point; a few central-difference iterations from
 // there reach it (docs/fit-convergence.md)
 constexpr int KT_POLISH_CENTRAL = 2;
-VectorXd clip(const Problem &P, const VectorXd &th) { return th.cwiseMax(P.lo).cwiseMin(P.hi); }
 
 struct LMResult {
     VectorXd th;

@@ -129,6 +129,22 @@ int main()
         }
         CHECK(dev == 0.0 && amp > 1e-4, "input_gain/offset_input: deviation %g from the scaled record (response %g)", dev, amp);
     }
+    // a Jacobian point that fails to simulate is taken from the other side: rtol starts 0.05 %
+    // below its largest valid value (1e-2), so its forward-difference point is refused
+    {
+        const char *qn[] = {"EA", "c0", "rtol"};
+        const double qlo[] = {100.0, 1e-3, 1e-12}, qhi[] = {1e5, 100.0, 0.05}, qst[] = {2700.0, 2.0, 0.009995};
+        double qv[3], qse[3], qcov[9], qcor[9], qsv[3], qsvec[9];
+        int qf[3], qdf[3];
+        kt_fit_result q;
+        std::memset(&q, 0, sizeof q);
+        q.values = qv; q.std_error = qse; q.covariance = qcov; q.correlation = qcor; q.singular_values = qsv;
+        q.singular_vectors = qsvec; q.unidentifiable = qf; q.direction_flags = qdf;
+        const int qrc = kt_fit(&e, 1, 3, qn, qlo, qhi, qst, nullptr, &o, &q);
+        CHECK(qrc == 0, "fit with a refused Jacobian point: rc %d: %s", qrc, kt_last_error());
+        CHECK(qrc != 0 || (std::fabs(qv[0] / 3000.0 - 1) < 1e-4 && std::fabs(qv[1] / 0.8 - 1) < 1e-3),
+              "fit with a refused Jacobian point: EA %g c0 %g", qv[0], qv[1]);
+    }
     if (failures) std::printf("%d failure(s)\n", failures);
     else std::printf("all passed\n");
     return failures ? 1 : 0;
