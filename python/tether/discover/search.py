@@ -129,6 +129,7 @@ class Search:
         t_sim = time.process_time()
         predict(trace, cur.spec, cur.params)
         t_sim = time.process_time() - t_sim
+        self.t_sim_start, self.n_free_start = t_sim, cur.n_free
         self.cap = max(5.0, 2000.0 * t_sim)
         self.fit_cap = self.cap          # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
         self.cur = cur
@@ -171,6 +172,15 @@ class Search:
         t = time.process_time()
         predict(self.trace, m.spec, m.params)
         return max(IWAN_STAGE_CAP_FACTOR, 2000.0 * (time.process_time() - t) / self.cap)
+
+    def extension_cap_factor(self, m: ModelFit) -> float:
+        """The time cap for fits that extend ``m``, as a multiple of the search's (which is counted
+        in simulations of the start model): each simulation costs what one of ``m`` costs, and each
+        Jacobian needs one per free parameter, so both ratios to the start model's, at least 1."""
+        t = time.process_time()
+        predict(self.trace, m.spec, m.params)
+        per_simulation = (time.process_time() - t) / max(self.t_sim_start, 1e-9)
+        return max(1.0, per_simulation) * max(1.0, (m.n_free + 1) / (self.n_free_start + 1))
 
     def out_of_budget(self, where: str) -> str:
         return (f"the time budget of {self.budget:.0f} s was spent {where}; the model is the last one that was "
@@ -327,9 +337,11 @@ class Search:
         record."""
         cur, sigma = self.cur, self.sigma
         jobs = [(eff, new, candidate_starts(cur, new, self.sc, self.trace)) for eff, new in todo]
+        factor = 1.0 if cur is self.fits[0] else self.extension_cap_factor(cur)
         candidate_fits = _side_by_side(
             lambda job, alone, _effects=cur.effects, _rms=cur.rms: self.fit(
-                self.trace, job[1], _effects + (job[0],), job[2], self.sc, own_thread=alone, baseline_rms=_rms), jobs)
+                self.trace, job[1], _effects + (job[0],), job[2], self.sc, own_thread=alone, baseline_rms=_rms,
+                cap_factor=factor), jobs)
         results = []
         for (eff, new, _), fm in zip(jobs, candidate_fits):
             dk = fm.n_free - cur.n_free
