@@ -582,8 +582,9 @@ class Search:
 def _on_whole_record(whole: Trace, fits: list, steps: list, removals: list, fitted: ModelFit | None) -> list:
     """A search on a thinned record carried to the whole record: each model in turn with its values
     of the search, its prediction and RMS error now those of the whole record, the errors of the
-    steps and removals with them; the last model is ``fitted`` (its fit to the whole record, which
-    starts from the search's values and ends no worse) where there is one."""
+    steps and removals with them; the last model is ``fitted`` (its final fit, from the search's
+    values) where there is one and it is no worse: tether.fit's staging (the elastic law and the
+    nuisance parameters first, the rest held) can lead a fit that starts at an optimum elsewhere."""
     carried = {}
     for m in fits:
         if id(m) not in carried:
@@ -598,6 +599,6 @@ def _on_whole_record(whole: Trace, fits: list, steps: list, removals: list, fitt
     for r in removals:
         r.rms_before, r.rms_after = rms_of[r.rms_before], rms_of[r.rms_after]
     out = [carried[id(m)] for m in fits]
-    if fitted is not None:
+    if fitted is not None and fitted.rms <= out[-1].rms:
         out[-1] = fitted
     return out
