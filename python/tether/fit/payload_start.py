@@ -68,15 +68,13 @@ def payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
             keep &= slack_free
     est: dict = {"_k_lin": k_lin, "_c_lin": c_lin, "_amp": amp, "_omega": math.sqrt(max(k_lin, 1e-300) / m)}
 
-    z = None
+    hysteresis, z = {}, None              # the hysteretic force z along the record, where there is one
     if spec.hysteresis == "boucwen":
         hysteresis, z = _bouc_wen_start(eq, keep, k_lin, amp)
-        est.update(hysteresis)
-    if spec.hysteresis == "iwan":
+    elif spec.hysteresis == "iwan":
         eps_b = m_w * g / (k_lin * L0) if k_lin > 0 and g > 0 else 0.0
-        hysteresis, bank_z = _iwan_start(eq, keep, L0, eps_b if spec.slack else None, k_lin)
-        est.update(hysteresis)
-        z = bank_z if hysteresis else z
+        hysteresis, z = _iwan_start(eq, keep, L0, eps_b if spec.slack else None, k_lin)
+    est.update(hysteresis)
     coef, res = eq.solve(z, keep)
     nd = 3 if eq.displacement else 1
     est.update(_damping_start([float(v) for v in coef[:nd]], c_lin, k_lin, m, amp))
