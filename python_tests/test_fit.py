@@ -276,7 +276,7 @@ def test_iwan_spring_strains_follow_the_generators_bank():
     numpy) against the hidden-effects generator's Jenkins elements (python_tests/hidden_effects.py,
     committed sample by sample) along a path with nested reversals: the same bank force."""
     import hidden_effects as he
-    from tether.fit import iwan_slip_grid, iwan_spring_strains
+    from tether.fit.iwan_bank import iwan_slip_grid, iwan_spring_strains
 
     t = np.linspace(0.0, 20.0, 4001)
     d = 2e-3 * np.sin(2 * np.pi * 0.3 * t) * np.exp(-0.05 * t) + 4e-4 * np.sin(2 * np.pi * 1.7 * t)

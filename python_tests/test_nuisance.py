@@ -15,9 +15,9 @@ import re
 import numpy as np
 import pytest
 
-from tether import fit as F
 from tether import identify_native as idn
 from tether.fit import FitError, fit_traces
+from tether.fit.experiments import trace_experiment
 from tether.models import parse_model
 from tether.traces import Trace, TraceError
 
@@ -53,7 +53,7 @@ def _record(experiment, t, inp, measured, model="linear", **meta):
 def _synthetic(experiment, t, inp, truth, model="linear", noise=NOISE, seed=1, **meta):
     """The record the engine simulates with ``truth`` (law and nuisance values), plus white noise."""
     shape = _record(experiment, t, inp, np.zeros_like(t), model, **meta)
-    x = F._experiment(shape, parse_model(model), {})
+    x = trace_experiment(shape, parse_model(model), {})
     y = idn.simulate(x.exp, truth) + noise * np.random.default_rng(seed).standard_normal(len(t))
     return _record(experiment, t, inp, y, model, **meta)
 
@@ -83,7 +83,7 @@ def test_free_vibration_is_unchanged_when_the_mass_and_every_force_scale_togethe
     t = np.arange(4000) * 1e-3
     tr = _record("free_vibration", t, None, np.zeros_like(t), initial_displacement_m=0.02,
                  initial_velocity_m_s=0.1)
-    x = F._experiment(tr, parse_model(model), {"rtol": 1e-10})
+    x = trace_experiment(tr, parse_model(model), {"rtol": 1e-10})
     s = 1.37
     # forces scale with s; Bouc-Wen's z is a force and its law z' = x' (A - |z| psi) (n = 1) is
     # homogeneous in (z, A): A scales, beta and gamma (psi, 1/m) stay

@@ -146,7 +146,7 @@ def grid_plan(trace: Trace, model: str | ModelSpec, base: Mapping[str, float], v
 # samples from a fit's uncertainty
 def parameter_bounds(name: str) -> tuple[float, float]:
     """The range a fit keeps ``name`` in: the FMU's min/max and the fit's own ranges."""
-    from .fit import FIT_RANGES
+    from .fit.parameters import FIT_RANGES
     from .fmu import model_description
 
     var = model_description().parameters.get(name)
@@ -230,7 +230,7 @@ def draw_samples(names: Sequence[str], values: np.ndarray, errors: np.ndarray, c
 def sample_plan(trace: Trace, model: str | ModelSpec, base: Mapping[str, float], extra: Mapping, n: int,
                 seed: int, where: str) -> Plan:
     """``n`` parameter sets drawn from the fit in ``extra`` (a P.json's statistics) around ``base``."""
-    from .fit import _LOG as LOG_SCALED
+    from .fit.parameters import LOG_SCALED
 
     spec = (parse_model(model) if isinstance(model, str) else model).for_experiment(trace.experiment)
     if n < 1:

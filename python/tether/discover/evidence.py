@@ -43,7 +43,7 @@ def _window_length(trace: Trace) -> int:
     of the record with at least 20 samples (load rig)."""
     n = len(trace.time)
     if trace.rig == "payload":
-        from ..fit import _dominant_frequency as fdom
+        from ..fit.kinematics import dominant_frequency as fdom
 
         f = fdom(np.asarray(trace.time, float), np.asarray(trace.measured, float))
         dt = float(np.median(np.diff(trace.time)))
@@ -109,8 +109,8 @@ def balance_elongation(trace: Trace, fit: ModelFit) -> float | None:
         pe = 2.0 / p["kaw_LT"] - 1.0
         return L0 * p["kaw_eps_ref"] * (W / p["kaw_F_ref"]) ** (1.0 / pe) if W > 0 else 0.0
     if fit.spec.stiffness == "cubic":
-        from ..fit import _cubic_inverse, cubic_tension
-        e = float(_cubic_inverse(p)(W)) if W > 0 else 0.0
+        from ..fit.elastic import cubic_inverse, cubic_tension
+        e = float(cubic_inverse(p)(W)) if W > 0 else 0.0
         return L0 * e if W <= 0 or abs(float(cubic_tension(p, e)) - W) <= 1e-6 * W else None
     return L0 * W / p["EA"] if p.get("EA") else None
 

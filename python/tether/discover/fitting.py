@@ -88,13 +88,13 @@ def _clean_start(names: Sequence[str], start: dict, sc: _Scales) -> dict:
 def predict(trace: Trace, spec: ModelSpec | str, params: dict) -> np.ndarray:
     """The model's prediction of the measured column on the trace's grid, driven exactly as
     tether.fit drives its fits (and tether.run the FMU)."""
-    from .. import fit as F
+    from ..fit.experiments import predict as predict_trace, trace_experiment
 
     spec = (parse_model(spec) if isinstance(spec, str) else spec).for_experiment(trace.experiment)
     from ..nuisance import NUISANCE
 
-    x = F._experiment(trace, spec, {})
-    return F._predict(x, {k: float(v) for k, v in params.items() if k in spec.parameters or k in NUISANCE})
+    x = trace_experiment(trace, spec, {})
+    return predict_trace(x, {k: float(v) for k, v in params.items() if k in spec.parameters or k in NUISANCE})
 
 
 #: the default bound of one discovery run [s]
@@ -200,13 +200,15 @@ def _side_by_side(fit_one: Callable, items: Sequence, nested: bool = False) -> l
 
 
 def _fit_direct(trace, spec, names, start, held=None, **options):
-    from .. import fit as F
     from .. import identify_native as idn
+    from ..fit.experiments import predict as predict_trace, trace_experiment
+    from ..fit.parameters import bounds_and_start, fmu_bounds, fmu_defaults
+    from ..fit.start import initial_estimate
 
     spec = spec.for_experiment(trace.experiment)
-    est = F.initial_estimate([trace], spec)
-    defaults = F._fmu_defaults()
-    bounds = F._fmu_bounds()
+    est = initial_estimate([trace], spec)
+    defaults = fmu_defaults()
+    bounds = fmu_bounds()
     values = {n: float(defaults[n]) for n in spec.parameters if n in defaults}
     values.update(held or {})
     free, scaling = {}, {}
@@ -217,12 +219,12 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
             free[n], scaling[n] = (lo, hi, s), how
             continue
         s = float((start or {}).get(n, est.get(n, defaults[n])))
-        lo, hi, s, how = F._bounds_and_start(n, s, bounds, {k: v for k, v in est.items() if k.startswith("_")})
+        lo, hi, s, how = bounds_and_start(n, s, bounds, {k: v for k, v in est.items() if k.startswith("_")})
         if how == "log" and not s > 0:
             s = max(abs(float(defaults[n])), 1e-6)
         free[n], scaling[n] = (lo, hi, s), how
     held = {n: v for n, v in values.items() if n not in names}
-    x = F._experiment(trace, spec, held)
+    x = trace_experiment(trace, spec, held)
     x.exp.weight = math.sqrt(x.periods)
     opts = dict(options)
     if trace.experiment == "free_vibration":
@@ -230,7 +232,7 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
     r = idn.fit([x.exp], free, scaling=scaling, **opts)
     values.update(r.as_dict())
     values.update({k: float(v) for k, v in (held or {}).items() if k in NZ.NUISANCE})
-    pred = F._predict(x, values)
+    pred = predict_trace(x, values)
     rms = float(np.sqrt(np.mean((pred - np.asarray(trace.measured, float)) ** 2)))
     return _DirectResult(parameters={k: v for k, v in values.items() if k not in NZ.NUISANCE}, free=list(names),
                          values=r.as_dict(), std_error=dict(zip(r.names, map(float, r.std_error))),

@@ -83,7 +83,7 @@ def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
     creep compliances and slip (creep_J1..3, slip_capacity0, slip_rate). Unlike
     tether.fit's defaults, a creep test frees the cubic too: two load levels leave one direction of
     it undetermined, but discovery asks only whether the law lowers the error."""
-    from ..fit import CREEP_FREE, law_free_parameters
+    from ..fit.parameters import CREEP_FREE, law_free_parameters
 
     spec = spec.for_experiment(experiment)
     names = law_free_parameters(spec)

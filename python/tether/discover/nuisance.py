@@ -114,7 +114,8 @@ def nuisance_start(trace: Trace, names: Sequence[str]) -> dict:
     record, the acceleration's column: m itself), so neither an offset nor a mass 10-30 % off the
     trace's leans on the stiffness and damping the start model begins from. The load rig: the
     elongation at the smallest loads, extrapolated along them to zero load."""
-    from .. import fit as F
+    from ..fit.equation_error import scaled_lstsq
+    from ..fit.kinematics import dominant_frequency, kinematics
 
     out = {}
     if "offset_measured" not in names:
@@ -129,7 +130,7 @@ def nuisance_start(trace: Trace, names: Sequence[str]) -> dict:
         return out
     t = np.asarray(trace.time, float)
     try:
-        K = F._kinematics(trace, F._dominant_frequency(t, y))
+        K = kinematics(trace, dominant_frequency(t, y))
     except (ValueError, np.linalg.LinAlgError, ZeroDivisionError):
         return out
     use = K.use
@@ -139,7 +140,7 @@ def nuisance_start(trace: Trace, names: Sequence[str]) -> dict:
     cols = ([K.a[use]] if free_m else []) + [K.v[use], K.x[use], np.ones(int(use.sum()))]
     rhs = f[use] - (0.0 if free_m else m * K.a[use])
     A = np.column_stack(cols)
-    coef = F._scaled_lstsq(A, rhs)
+    coef = scaled_lstsq(A, rhs)
     k = float(coef[-2])
     if not k > 0:
         return out

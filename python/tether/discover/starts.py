@@ -49,7 +49,7 @@ def _power_term_start(params: dict, sc: _Scales) -> dict:
     tension at the record's largest strain (its reference strain pow_eps), the cubic's
     coefficients refitted by least squares so that the law stays what it was over [0, pow_eps]
     (a power term of no tension has no slope in its exponent: the fit could not start it)."""
-    from ..fit import cubic_tension
+    from ..fit.elastic import cubic_tension
 
     e_ref = sc.eps + (sc.amp / sc.L0 if sc.rig == "payload" else 0.0)
     e = np.linspace(0.0, e_ref, 41)[1:]
@@ -74,18 +74,19 @@ def _damping_table_start(trace: Trace, spec: ModelSpec, params: dict, dx: float)
     c(x) of a free vibration fitted to 1.9 x noise in one run and to 4.9 x in another; from this
     one the table lands within 4 % of the generator's c(x) at every knot). None where the record
     is not a payload record."""
-    from .. import fit as F
     from .. import identify_native as idn
+    from ..fit.equation_error import restoring_columns, scaled_lstsq, taut_for_sure
+    from ..fit.kinematics import dominant_frequency, kinematics
 
     if trace.rig != "payload" or not dx > 0:
         return None
-    K = F._kinematics(trace, F._dominant_frequency(np.asarray(trace.time, float), np.asarray(trace.measured, float)))
+    K = kinematics(trace, dominant_frequency(np.asarray(trace.time, float), np.asarray(trace.measured, float)))
     m, g = float(trace.payload_mass_kg), float(trace.gravity_m_s2)
     keep = K.use.copy()
     if spec.slack and g > 0:
         k = float(params.get("EA", params.get("a1", 0.0))) / float(trace.length_m)
         if k > 0:
-            keep &= F._taut_for_sure(K.x, m, g, k)
+            keep &= taut_for_sure(K.x, m, g, k)
     rhs = K.f - m * K.a
     if spec.hysteresis == "boucwen" and all(n in params for n in ("bw_A", "bw_beta", "bw_gamma")):
         rhs = rhs - idn.bouc_wen_path(K.x, float(params["bw_A"]), float(params["bw_beta"]), float(params["bw_gamma"]),
@@ -93,11 +94,11 @@ def _damping_table_start(trace: Trace, spec: ModelSpec, params: dict, dx: float)
     s = np.abs(K.x) / dx
     hats = [np.clip(1.0 - np.abs(s - j), 0.0, None) for j in range(1, DAMPING_TABLE_KNOTS)]
     hats.append(np.clip(s - (DAMPING_TABLE_KNOTS - 1), 0.0, 1.0))      # the last knot: held beyond
-    cols = [K.v] + [h * K.v for h in hats] + F._restoring_columns(K.x, spec.stiffness == "cubic")
+    cols = [K.v] + [h * K.v for h in hats] + restoring_columns(K.x, spec.stiffness == "cubic")
     A = np.column_stack(cols)[keep]
     if A.shape[0] <= 2 * A.shape[1]:
         return None
-    coef = F._scaled_lstsq(A, rhs[keep])
+    coef = scaled_lstsq(A, rhs[keep])
     if not np.all(np.isfinite(coef)):
         return None
     p = {"c0": float(coef[0]) if coef[0] > 0 else float(params.get("c0", 0.0)), "c_table_dx": dx}
@@ -126,7 +127,9 @@ def _retardation_times_start(trace: Trace, spec: ModelSpec, params: dict, sc: _S
     None where the record is not a creep test."""
     from itertools import combinations
 
-    from .. import fit as F
+    from ..fit.creep_start import kelvin_response, slip_response
+    from ..fit.elastic import cubic_inverse
+    from ..fit.equation_error import scaled_nnls
 
     if trace.experiment != "creep" or not sc.hold > 0:
         return None
@@ -136,18 +139,18 @@ def _retardation_times_start(trace: Trace, spec: ModelSpec, params: dict, sc: _S
         return None
     eps = np.asarray(trace.measured, float) / float(trace.length_m)
     if spec.stiffness == "cubic":
-        elastic = F._cubic_inverse(params)(T)
+        elastic = cubic_inverse(params)(T)
     else:
         ea = float(params.get("EA", sc.ea))
         elastic = T / ea
     slip_tau = float(params.get("slip_regen_tau", 3600.0))
     grid = retardation_grid(t, sc.hold)
-    kelvin = [F.kelvin_response(t, T, tau) for tau in grid]
-    fixed = [T, -T, F.slip_response(t, T, slip_tau)]
+    kelvin = [kelvin_response(t, T, tau) for tau in grid]
+    fixed = [T, -T, slip_response(t, T, slip_tau)]
     b = eps - elastic
     best = None
     for idx in combinations(range(len(grid)), 3):
-        coef, res = F._scaled_nnls(np.column_stack(fixed + [kelvin[i] for i in idx]), b)
+        coef, res = scaled_nnls(np.column_stack(fixed + [kelvin[i] for i in idx]), b)
         if best is None or res < best[0]:
             best = (res, idx, coef)
     _, idx, coef = best
