@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..traces import Trace
-from .evidence import balance_elongation, regimes, Window
+from .evidence import lowest_elongation, regimes, Window
 from .nuisance import nuisance_lines, nuisance_section
 from .records import CandidateResult, Discovery
 
@@ -24,11 +24,11 @@ def _slack_seen_by(trace: Trace, win: CandidateResult) -> str:
     if win.signature > 0 or win.fit is None:
         return text
     sl = regimes(trace, win.fit).get("slack")
-    ub = balance_elongation(trace, win.fit)
+    lowest, ub = lowest_elongation(trace, win.fit)
     if sl is None or not sl.any() or ub is None:
         return text
     return (f"{text}; with slack and its refitted law (balance stretch {ub:.4g} m) the measured elongation is "
-            f"below zero in {100 * np.mean(sl):.1f} % of the record")
+            f"below zero in {100 * np.mean(sl):.1f} % of the record (lowest {lowest + ub:+.4g} m)")
 
 
 def _evidence(win: CandidateResult, windows: list) -> str:

@@ -29,6 +29,7 @@ class CandidateResult:
     verdict: str = ""
     accepted: bool = False
     seconds_spent: float | None = None      # kept by forget_curves
+    outranked_by: str = ""                  # passed every test, but this effect won the step
 
     def seconds(self) -> float:
         """The time of this candidate's fits (the whole record's and the held-out part's)."""

@@ -52,6 +52,17 @@ def _refit_without_slack(trace: Trace, cur: ModelFit, results: Sequence, sigma: 
     return None
 
 
+def _outranked(results: Sequence, win: CandidateResult) -> None:
+    """One effect is added per step: every other candidate that passed is not accepted, and its
+    verdict says it passed and which one won (the step's record must not mark it added)."""
+    for c in results:
+        if c is not win and c.accepted:
+            c.accepted = False
+            c.outranked_by = win.effect
+            c.verdict += (f"; passes, but {win.effect} lowers the BIC more ({win.bic_change:+.0f} against "
+                          f"{c.bic_change:+.0f}) and is added in its place")
+
+
 @in_one_blas_thread
 def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None] | None = None,
              max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET,
@@ -283,9 +294,10 @@ class Search:
             self.stop = self.out_of_budget(f"while the candidates of step {len(self.steps)} were fitted")
             return False
         win = results[0]
+        if win.accepted:
+            _outranked(results, win)
         for c in results:
-            self.say(f"  {c.effect}: {'earns' if c.accepted and c is win else 'does not earn'} its parameters: "
-                     f"{c.verdict}")
+            self.say(f"  {c.effect}: {'earns' if c.accepted else 'does not earn'} its parameters: {c.verdict}")
         if not win.accepted:
             self.stop_without_winner(results)
             return False
