@@ -50,8 +50,11 @@ def _present(d: Discovery, effect: str, base: tuple) -> dict:
     if effect in base:
         return _verdict("present", f"in the start model {d.start_model}: assumed, not tested")
     k, st = next((k, st) for k, st in reversed(list(enumerate(d.steps, 1))) if st.effect == effect)
-    win = next(c for c in st.candidates if c.effect == effect and c.accepted)
-    text, bic = f"added in step {k} ({st.model_before} -> {st.model_after}): {win.verdict}", win.bic_change
+    win = next((c for c in st.candidates if c.effect == effect and c.accepted), None)
+    if win is None:                             # (a record without its candidates: the step's evidence)
+        text, bic = f"added in step {k} ({st.model_before} -> {st.model_after}): {st.evidence}", None
+    else:
+        text, bic = f"added in step {k} ({st.model_before} -> {st.model_after}): {win.verdict}", win.bic_change
     for j, _, r in _tests_of(d, effect):
         if j > k and isinstance(r, Retest):
             text += f"; tested again in step {j} beside {d.steps[j - 1].effect}, kept: {r.verdict}"
@@ -86,7 +89,7 @@ def _last_test(d: Discovery, effect: str) -> dict:
                         t.bic_change)
     if isinstance(t, Retest):
         return _verdict("undetermined", f"kept when tested again in step {k}, but not in the final model "
-                                        f"{d.final.model}", t.bic_change)
+                                        f"{d.final.model}")
     if st.cut_short:
         return _verdict("undetermined", f"its fit in step {k} was not judged to the end: {d.stop_reason}")
     if not math.isfinite(t.bic_change):
@@ -153,7 +156,7 @@ def verdict_lines(effects: dict, unexplained_: dict | None) -> list[str]:
     """The verdicts and the unexplained part, for the terminal."""
     lines = ["effects (weight: how strongly the data prefer the model with it, from the BIC):"]
     for e, v in effects.items():
-        w = "  -  " if v["weight"] is None else f"{v['weight']:.2f}"
+        w = "  - " if v["weight"] is None else f"{v['weight']:.2f}"
         lines.append(f"  {e:<20} {v['verdict']:<12} {w}  {v['evidence']}")
     if unexplained_ is not None:
         lines.append(f"unexplained: {unexplained_['text']}")
