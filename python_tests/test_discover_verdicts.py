@@ -236,3 +236,13 @@ def test_a_removed_effect_is_absent_with_the_weight_of_its_removal(tmp_path):
     w = effect_verdicts(d)["nonlinear_stiffness"]
     assert w["verdict"] == "undetermined" and "set aside in step 1 for hysteresis" in w["evidence"], w
     assert "not tested again: the time budget" in w["evidence"] and w["weight"] is None
+    # refused in step 1 (BIC +12 with it), and the final model at the noise without it: absent
+    from dataclasses import replace
+
+    d.steps = [replace(steps[0], candidates=[cand("hysteresis", -500.0, True),
+                                             cand("nonlinear_stiffness", 12.0, verdict="BIC changes by +12.0")]),
+               steps[1]]
+    d.fits = [final, replace(final, rms=sigma)]
+    w = effect_verdicts(d)["nonlinear_stiffness"]
+    assert w["verdict"] == "absent" and w["weight"] == bic_weight(12.0) < 0.01, w
+    assert w["evidence"].startswith("refused in step 1") and "within the noise without it" in w["evidence"]

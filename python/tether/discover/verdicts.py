@@ -97,7 +97,17 @@ def _last_test(d: Discovery, effect: str) -> dict:
     if t.outranked_by:
         return _outranked(d, effect, k, t)
     return _verdict("absent", f"refused in step {k} (the model {t.model}: RMS error {t.rms / d.noise.sigma:.2f} x "
-                              f"noise, from {st.rms_before / d.noise.sigma:.2f}): {t.verdict}", t.bic_change)
+                              f"noise, from {st.rms_before / d.noise.sigma:.2f}): {t.verdict}" + _at_the_noise(d),
+                    t.bic_change)
+
+
+def _at_the_noise(d: Discovery) -> str:
+    """'' or, where the final model reproduces the record within the noise, that it does so without
+    the effect (a refusal beside fewer effects is then confirmed by the final model)."""
+    if not _within_noise(d):
+        return ""
+    return f"; the final model {d.final.model} reproduces the record within the noise without it " \
+           f"({d.final.rms / d.noise.sigma:.2f} x noise)"
 
 
 def _earlier(d: Discovery, effect: str, k: int) -> str:
