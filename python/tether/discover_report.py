@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .discover import ordinal
+from .discover.judge import CRITERIA
 from .report import PAGE_STYLE, pyplot, save_figure_atomic, write_json_atomic, write_text_atomic
 
 
@@ -98,6 +99,40 @@ def _f(x, spec=".3g"):
     return "–" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, spec)
 
 
+#: a verdict's row class on the page: present green, absent plain, undetermined grey
+_VERDICT_CLASS = {"present": "good", "absent": "", "undetermined": "undetermined"}
+
+
+def verdicts_html(doc: dict) -> str:
+    """The verdict on every effect (OUT.json's ``effects``) and the unexplained part, in words."""
+    esc = html.escape
+    rows = "".join(
+        f"<tr class='{_VERDICT_CLASS[v['verdict']]}'><td class=l><b>{esc(e)}</b></td><td class=l>{esc(v['verdict'])}"
+        f"</td><td>{_f(v['weight'], '.2f')}</td><td class=l>{esc(v['evidence'])}</td></tr>"
+        for e, v in doc["effects"].items())
+    un = doc["unexplained"]
+    if un is not None:
+        said = f"<p class=bad><b>Unexplained</b> ({un['gap_noise']:.2f} × the noise): {esc(un['text'])}</p>"
+    else:
+        said = f"<p>{esc(nothing_missing(doc))}</p>"
+    return ("<h2>The effects</h2><p>Present: named in the final model. Absent: the record can reveal it, and it "
+            "was tested and did not earn its place. Undetermined: the experiment or this record cannot reveal it, "
+            "or it was not tested to the end. Weight: how strongly the data prefer the model with the effect to "
+            "the one without it, 1 / (1 + exp(ΔBIC / 2)) from its last decisive test (– where none).</p>"
+            "<table><tr><th>effect</th><th>verdict</th><th>weight</th><th>evidence</th></tr>"
+            f"{rows}</table>\n{said}")
+
+
+def nothing_missing(doc: dict) -> str:
+    """What the page says where nothing is unexplained: the final model within the noise, or its gap
+    less than the noise."""
+    r = doc["rmse_final_over_noise"]
+    if r <= CRITERIA.within_noise:
+        return f"Nothing remains unexplained: the final model reproduces the record within the noise ({r:.2f} × noise)."
+    return (f"Nothing is reported unexplained: the final model misses the record at {r:.2f} × noise, a gap above "
+            "the noise smaller than the noise itself.")
+
+
 def discovery_page(d, doc: dict, images: dict) -> str:
     esc = html.escape
     sigma = d.noise.sigma
@@ -160,8 +195,9 @@ def discovery_page(d, doc: dict, images: dict) -> str:
         "whole record's errors; the rounds' candidates show those of the searched samples.</p>\n")
     return f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>Discovery: {esc(tr.name)}</title><style>{PAGE_STYLE}
-td.l {{ max-width: 30em; }}</style></head>
+td.l {{ max-width: 30em; }} .undetermined {{ color: #666; }}</style></head>
 <body><h1>Discovery on {esc(tr.name)} ({esc(tr.experiment)})</h1>
+{verdicts_html(doc)}
 <p>Start model <code>{esc(doc['start_model'])}</code>, RMS error {doc['rmse_initial']:.3g} m
 ({doc['rmse_initial_over_noise']:.2f} × the noise). Noise estimated from the data: {sigma:.3g} m
 ({esc(doc['noise_method'])}). <b>Discovered: {esc(added)}</b>; final model <code>{esc(doc['final_model'])}</code>,
@@ -170,7 +206,7 @@ RMS error {doc['rmse_final']:.3g} m = {doc['rmse_final_over_noise']:.2f} × the 
 <code>tether simulate OTHER.csv --params discovery.json</code>).</p>
 <h2>The steps</h2>
 <table><tr><th>#</th><th>effect</th><th>model after</th><th>RMS / σ before</th><th>after</th>
-<th>where the disagreement was</th><th>evidence</th></tr>{''.join(rows) or '<tr><td colspan=7>no step: nothing is missing</td></tr>'}</table>
+<th>where the disagreement was</th><th>evidence</th></tr>{''.join(rows) or '<tr><td colspan=7>no step: no effect named</td></tr>'}</table>
 {nuisance}
 <h2>The gap, step by step</h2><img src="{esc(images['gap'])}" alt="gap">
 <h2>The record against each model</h2>

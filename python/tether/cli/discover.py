@@ -17,8 +17,10 @@ add the one that earns its parameters (BIC, the gap above the noise at least hal
 better prediction of the last 40 % of the record from a fit to the first 60 %); until the model is
 within the noise or nothing earns its place. Then print a short account.
 
---json OUT.json gets added_effects, rmse_initial, rmse_final (measured unit), noise_estimate, the
-steps (effect, where, evidence, rmse_before, rmse_after) and final_params. OUT.json is itself a
+--json OUT.json gets effects (every effect of the vocabulary: present, absent or undetermined, its
+weight and evidence), unexplained (the gap the final model leaves, in noise units, or null),
+added_effects, rmse_initial, rmse_final (measured unit), noise_estimate, the steps (effect, where,
+evidence, rmse_before, rmse_after) and final_params. OUT.json is itself a
 parameter file of the discovered model: `tether simulate OTHER.csv --params OUT.json`.
 --report DIR writes DIR/index.html: the record against each model in turn, the residuals with the
 flagged windows, and the gap shrinking step by step.

@@ -36,7 +36,8 @@ that polynomial closes only part of the gap, the candidate is fitted again with 
 The package, one job per module: ``laws`` (what an effect and a law are), ``noise``, ``scales``,
 ``samples`` (the held-out part, the thinning), ``fitting``, ``starts``, ``evidence`` (regimes,
 windows, signatures), ``judge`` (every threshold of acceptance), ``records``, ``refine`` (shapes),
-``rival`` (rival laws, the Iwan stages), ``nuisance`` (the record's nuisance parameters), ``search`` (discover() itself) and ``document`` (OUT.json
+``rival`` (rival laws, the Iwan stages), ``nuisance`` (the record's nuisance parameters), ``search`` (discover() itself),
+``verdicts`` (the verdict on every effect, what remains unexplained) and ``document`` (OUT.json
 and the account). docs/discovery.md tells the story. Settings for a run beside others (bench/):
 ``tether.discover.fitting.ENGINE_OPTIONS`` and ``tether.discover.fitting.PARALLEL_FITS``.
 """
@@ -52,12 +53,14 @@ from .nuisance import nuisance_not_freed, nuisance_parameters, nuisance_section
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Step
 from .samples import search_thinning, thinned, thinned_input_miss
 from .search import discover
+from .verdicts import bic_weight, effect_verdicts, unexplained
 
 __all__ = ["CANDIDATES", "DEFAULT_BUDGET", "ENGINE_OPTIONS", "CandidateResult", "Discovery", "DiscoveryError",
            "ModelFit", "NoiseEstimate", "Refinement", "Removal", "Step", "Window", "account", "candidates",
            "disagreement", "discover", "discovery_document", "estimate_noise", "fit_model", "free_parameters",
            "nuisance_not_freed", "nuisance_parameters", "nuisance_section", "ordinal", "predict", "regime_table", "regimes", "search_thinning", "signatures", "thinned",
-           "thinned_input_miss"]
+           "thinned_input_miss",
+           "bic_weight", "effect_verdicts", "unexplained"]
 
 # `tether.discover(...)` calls tether.api.discover (docs/api.md); the package stays a package
 import sys as _sys  # noqa: E402

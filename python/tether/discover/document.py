@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..traces import Trace
-from .evidence import balance_elongation, regimes, Window
+from .evidence import lowest_elongation, regimes, Window
+from .judge import CRITERIA
 from .nuisance import nuisance_lines, nuisance_section
 from .records import CandidateResult, Discovery
+from .verdicts import effect_verdicts, unexplained, verdict_lines
 
 
 def ordinal(k: int) -> str:
@@ -24,11 +28,11 @@ def _slack_seen_by(trace: Trace, win: CandidateResult) -> str:
     if win.signature > 0 or win.fit is None:
         return text
     sl = regimes(trace, win.fit).get("slack")
-    ub = balance_elongation(trace, win.fit)
+    lowest, ub = lowest_elongation(trace, win.fit)
     if sl is None or not sl.any() or ub is None:
         return text
     return (f"{text}; with slack and its refitted law (balance stretch {ub:.4g} m) the measured elongation is "
-            f"below zero in {100 * np.mean(sl):.1f} % of the record")
+            f"below zero in {100 * np.mean(sl):.1f} % of the record (lowest {lowest + ub:+.4g} m)")
 
 
 def _evidence(win: CandidateResult, windows: list) -> str:
@@ -85,6 +89,8 @@ def discovery_document(d: Discovery) -> dict:
         "noise_method": d.noise.method,
         "rmse_initial_over_noise": d.fits[0].rms / sigma,
         "rmse_final_over_noise": final.rms / sigma,
+        "effects": effect_verdicts(d),
+        "unexplained": unexplained(d),
         "heldout_from_s": d.heldout_start,
         "steps": steps,
         "removed": [{"effect": r.effect, "model_before": r.model_before, "model_after": r.model_after,
@@ -102,12 +108,26 @@ def discovery_document(d: Discovery) -> dict:
     }
 
 
+def nothing_named(rms_over_noise: float, missing: dict | None) -> str:
+    """What a run that names no effect says of the start model: nothing is missing only where it
+    reproduces the record within the noise."""
+    if missing is not None:
+        return "no effect named, but something remains unexplained (above)"
+    if rms_over_noise <= CRITERIA.within_noise:
+        return "no effect is missing from the start model"
+    gap = math.sqrt(max(rms_over_noise ** 2 - 1.0, 0.0))
+    return (f"no effect named; the start model misses the record at {rms_over_noise:.2f} x noise, a gap of "
+            f"{gap:.2f} sigma: less than the noise itself, so nothing is reported unexplained")
+
+
 def account(d: Discovery) -> str:
     """A short account for the terminal."""
     sigma = d.noise.sigma
-    lines = [f"{d.trace.name} ({d.trace.experiment}): noise {sigma:.3g} m, estimated from the data "
-             f"({d.noise.method})",
-             f"start: {d.start_model}, RMS error {d.fits[0].rms:.3g} m = {d.fits[0].rms / sigma:.2f} x noise"]
+    missing = unexplained(d)
+    lines = verdict_lines(effect_verdicts(d), missing)
+    lines += [f"{d.trace.name} ({d.trace.experiment}): noise {sigma:.3g} m, estimated from the data "
+              f"({d.noise.method})",
+              f"start: {d.start_model}, RMS error {d.fits[0].rms:.3g} m = {d.fits[0].rms / sigma:.2f} x noise"]
     if d.searched_every > 1:
         lines.append(f"searched on every {ordinal(d.searched_every)} sample of {len(d.trace.time)}; the errors below "
                      "are those of the whole record, the candidates' in the JSON those of the searched samples")
@@ -129,7 +149,7 @@ def account(d: Discovery) -> str:
         elif r.accepted:
             lines.append(f"shape of {r.effect} refined ({', '.join(r.parameters)}): {r.verdict}")
     if not d.added_effects:
-        lines.append("no effect is missing from the start model")
+        lines.append(nothing_named(d.final.rms / sigma, missing))
     lines.append(f"stopped: {d.stop_reason}")
     lines += nuisance_lines(nuisance_section(d.trace, d.final))
     lines.append(f"discovered: {', '.join(d.added_effects) or 'nothing'}; final model {d.final.model}, RMS error "

@@ -115,6 +115,29 @@ def balance_elongation(trace: Trace, fit: ModelFit) -> float | None:
     return L0 * W / p["EA"] if p.get("EA") else None
 
 
+def lowest_elongation(trace: Trace, fit: ModelFit) -> tuple[float, float | None]:
+    """Payload rig: the lowest measured displacement [m] and the model's balance stretch u_b (None
+    where the model gives none): the tether goes slack where the displacement is below -u_b, the
+    same test as the ``slack`` regime of :func:`regimes`."""
+    lowest = float(np.min(np.asarray(trace.measured, float)))
+    if not fit.params or not float(trace.gravity_m_s2) > 0:
+        return lowest, None
+    return lowest, balance_elongation(trace, fit)
+
+
+def slack_reach(trace: Trace, fit: ModelFit) -> str:
+    """What the record measures against the slack threshold, in words: the lowest displacement, the
+    threshold -u_b of ``fit`` and the lowest elongation u_b + min(x)."""
+    lowest, ub = lowest_elongation(trace, fit)
+    if ub is None:
+        return (f"the measured displacement reaches down to {lowest:.4g} m; the model {fit.model} gives no balance "
+                f"stretch under the payload's weight, so where the tether would go slack is not known")
+    goes = "goes" if lowest + ub < 0 else "never goes"
+    return (f"the measured displacement reaches down to {lowest:.4g} m; with the balance stretch {ub:.4g} m of "
+            f"the model {fit.model} the tether goes slack below {-ub:.4g} m, and the record {goes} below it "
+            f"(lowest elongation {lowest + ub:+.4g} m)")
+
+
 def disagreement(trace: Trace, fit: ModelFit, sigma: float, masks: dict | None = None) -> list[Window]:
     """Time windows where the local RMS residual (over about one response period, or 1 % of a load
     test) stands above the noise (above sigma * sqrt(1 + 4 sqrt(2/w)), where pure noise rarely gets,
@@ -247,12 +270,9 @@ def signatures(trace: Trace, fit: ModelFit, sigma: float, masks: dict) -> dict[s
             out["slack"] = {"score": share,
                             "text": f"the measured elongation (balance stretch {balance_elongation(trace, fit):.4g} m "
                                     f"plus displacement) is below zero in {100 * np.mean(sl):.1f} % of the record, "
-                                    f"which holds {100 * share:.0f} % of the excess residual"}
+                                    f"which holds {100 * share:.0f} % of the excess residual ({slack_reach(trace, fit)})"}
         else:
-            ub = balance_elongation(trace, fit)
-            stretch = f" {ub:.4g} m" if ub is not None else ""
-            out["slack"] = {"score": 0.0, "text": f"the measured elongation never goes below zero with this model's "
-                                                  f"balance stretch{stretch}: nothing in it shows a slack tether"}
+            out["slack"] = {"score": 0.0, "text": f"{slack_reach(trace, fit)}: nothing in the record shows a slack tether"}
     else:
         T = np.asarray(trace.input, float)
         common, diff = _branch_split(T, r, masks["loading"], masks["unloading"])

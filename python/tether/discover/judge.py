@@ -58,6 +58,9 @@ class Criteria:
     damping_table_trigger: float = 0.8
     #: the Iwan bank's last stages run where the bank misses the record by this gap [sigma] or more
     iwan_stages_gap: float = 1.0
+    #: the final model leaves something unexplained where its gap is this many sigma or more (RMS
+    #: error >= 1.41 x noise): the residual then holds at least as much as the noise itself
+    unexplained_gap: float = 1.0
 
 
 #: the criteria every discovery run judges by

@@ -23,6 +23,24 @@ CANDIDATES = {
 }
 
 
+#: why an experiment cannot reveal each effect of the vocabulary it has no candidate for
+#: (CANDIDATES and this table together cover every effect of every experiment)
+NOT_REVEALED = {
+    "free_vibration": {"creep": "a free vibration lasts seconds, and creep acts over minutes to hours under a "
+                                "held load: it cannot show in this record"},
+    "forced": {"creep": "a forced vibration lasts seconds, and creep acts over minutes to hours under a held "
+                        "load: it cannot show in this record"},
+    "load_unload": {"nonlinear_damping": "a load test is quasi-static (no inertia, speeds near zero): damping, "
+                                         "linear or not, does not act in it",
+                    "slack": "the load of a load test is never below zero: the tether is never pushed towards "
+                             "compression, where slack would act"},
+    "creep": {"nonlinear_damping": "a creep test holds its loads for hours and changes them between two samples: "
+                                   "damping acts on no sample",
+              "slack": "the load of a creep test is never below zero: the tether is never pushed towards "
+                       "compression, where slack would act"},
+}
+
+
 #: shape terms of a named effect's law that the last stage may free (see refine_shapes), per effect
 #: and law: each entry one group tried from the final model. The search for effects keeps them at
 #: the classic law's values (Bouc-Wen n = 1, no generalized terms): they change the shape of a law,
@@ -144,6 +162,19 @@ def candidates(trace: Trace) -> tuple[str, ...]:
     if trace.rig != "payload" and not sampled_branches(trace):
         c = tuple(e for e in c if e != "hysteresis")
     return c
+
+
+def unrevealed(trace: Trace, effect: str) -> str | None:
+    """Why a record of this experiment cannot reveal ``effect`` (NOT_REVEALED; hysteresis in a load
+    test that samples no loading and unloading paths, see sampled_branches), or None where it can:
+    where ``effect`` is one of candidates(trace)."""
+    if effect in candidates(trace):
+        return None
+    if effect in CANDIDATES[trace.experiment]:
+        return ("the load test samples no loading and unloading paths over a common range of load (its weights "
+                "change between two samples): there a hysteresis is a single-valued load-strain relation, which "
+                "nonlinear stiffness fits as well")
+    return NOT_REVEALED[trace.experiment][effect]
 
 
 def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:

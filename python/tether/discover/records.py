@@ -29,6 +29,7 @@ class CandidateResult:
     verdict: str = ""
     accepted: bool = False
     seconds_spent: float | None = None      # kept by forget_curves
+    outranked_by: str = ""                  # passed (or was set aside untested), but this effect won the step
 
     def seconds(self) -> float:
         """The time of this candidate's fits (the whole record's and the held-out part's)."""
@@ -62,6 +63,19 @@ class Step:
     evidence: str = ""
     rms_after: float | None = None
     model_after: str | None = None
+    retests: list = field(default_factory=list)   # Retest of each effect named before this step's
+    cut_short: bool = False         # the time budget ran out while the candidates were fitted
+
+
+@dataclass
+class Retest:
+    """An effect named in an earlier step, tested again once a later one is in (the model without
+    it refitted): kept, or removed (then a Removal too)."""
+
+    effect: str
+    bic_change: float               # BIC with the effect less BIC without it, on the searched samples
+    kept: bool
+    verdict: str
 
 
 @dataclass

@@ -23,7 +23,7 @@ from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING
 from .noise import estimate_noise
 from .nuisance import nuisance_parameters, nuisance_start
 from .. import nuisance as NZ
-from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Step
+from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Retest, Step
 from .refine import _knots_unseen, _shape_groups, refine_shapes
 from .rival import IWAN_STAGE_CAP_FACTOR, bank_cap_factor, finer_bank, restart_idle_elements, rival_law
 from .samples import _truncated, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
@@ -50,6 +50,20 @@ def _refit_without_slack(trace: Trace, cur: ModelFit, results: Sequence, sigma: 
                            seconds=fm.seconds, message=fm.message, std_error=dict(fm.std_error),
                            unidentifiable=list(fm.unidentifiable), best_start=fm.best_start)
     return None
+
+
+def _outranked(results: Sequence, win: CandidateResult) -> None:
+    """One effect is added per step: every other candidate that passed is not accepted, and its
+    verdict says it passed and which one won (the step's record must not mark it added); those
+    and the ones the held-out test set aside for a better candidate name the winner."""
+    for c in results:
+        if c is win or not (c.accepted or c.outranked_by):
+            continue
+        if c.accepted:
+            c.accepted = False
+            c.verdict += (f"; passes, but {win.effect} lowers the BIC more ({win.bic_change:+.0f} against "
+                          f"{c.bic_change:+.0f}) and is added in its place")
+        c.outranked_by = win.effect
 
 
 @in_one_blas_thread
@@ -276,6 +290,7 @@ class Search:
         results = self.judged_candidates(todo, sig)
         step.candidates = results
         if self.budget_hit:
+            step.cut_short = True
             for c in results:
                 c.accepted = False
                 c.verdict += "; not judged to the end: the time budget ran out during this step"
@@ -283,9 +298,10 @@ class Search:
             self.stop = self.out_of_budget(f"while the candidates of step {len(self.steps)} were fitted")
             return False
         win = results[0]
+        if win.accepted:
+            _outranked(results, win)
         for c in results:
-            self.say(f"  {c.effect}: {'earns' if c.accepted and c is win else 'does not earn'} its parameters: "
-                     f"{c.verdict}")
+            self.say(f"  {c.effect}: {'earns' if c.accepted else 'does not earn'} its parameters: {c.verdict}")
         if not win.accepted:
             self.stop_without_winner(results)
             return False
@@ -397,6 +413,7 @@ class Search:
             self.heldout_test(c)
         for c in passing[tested:]:
             c.accepted = False
+            c.outranked_by = "a better candidate"    # named in step() once the winner is known
             c.verdict += "; not tested on the held-out part (a better candidate was)"
 
     def heldout_test(self, c: CandidateResult, label: str = "") -> None:
@@ -464,6 +481,7 @@ class Search:
                 continue
             bic = bic_change(rf, cur, self.n)
             keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
+            self.steps[-1].retests.append(Retest(e, bic, keep, why))
             if keep:
                 continue
             self.say(f"removed {e}: without it the RMS error is {rf.rms / sigma:.2f} x noise ({why})")
