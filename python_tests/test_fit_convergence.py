@@ -8,6 +8,8 @@ engine's result) must find no point better by more than a small part of one nois
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -87,3 +89,29 @@ def test_intervals_widen_for_residuals_correlated_in_time(tmp_path, rho):
         ratios.append(r.std_error["offset_measured"] / expected)
     assert 0.8 < np.mean(ratios) < 1.2, ratios
 
+
+
+def test_a_parameter_the_data_do_not_determine_is_written_as_null(tmp_path):
+    """An Iwan element that never slips has an infinite variance (the engine's pseudo-inverse);
+    its interval and standard error go to the params file as null, and the file stays strict JSON
+    that its schema accepts and `--params` reads (it exited 1 on 'Out of range float values')."""
+    import json
+    import math
+
+    import jsonschema
+
+    from tether.fit import write_fit_params
+    from tether.models import read_params
+
+    tr = he.generate("forced", set(), 1004, noise=1e-4, rate=100.0, duration_s=6.0)
+    tr.write(tmp_path, "rec")
+    r = fit_traces([read_trace(tmp_path / "rec")], "linear", free=["EA", "c0"])
+    r.std_error["c0"] = math.inf
+    r.ci95["c0"] = (-math.inf, math.inf)
+    path = write_fit_params(tmp_path / "p.json", r)
+    doc = json.loads(path.read_text(), parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+    assert doc["intervals"]["c0"] is None and doc["std_error"]["c0"] is None
+    assert doc["intervals"]["EA"] == [float(x) for x in r.ci95["EA"]]
+    schema = json.loads((Path(__file__).resolve().parents[1] / "docs/schemas/tether-params-1.schema.json").read_text())
+    jsonschema.validate(doc, schema)
+    assert read_params(path).parameters["c0"] == pytest.approx(r.values["c0"])

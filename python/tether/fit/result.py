@@ -3,6 +3,8 @@ progress reports (FitProgress) and its one error (FitError)."""
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -110,9 +112,12 @@ def write_fit_params(path: str | Path, result: FitResult) -> Path:
     """The canonical parameter file (``tether simulate/validate --params`` read it) with the fit's
     statistics: {"model", "parameters", "intervals", "std_error", "correlation", "unidentifiable",
     "rms"}."""
+    # a parameter the data do not determine has an infinite (or undefined) variance: null, so that
+    # the file stays strict JSON
     extra = {
-        "intervals": {n: [float(a), float(b)] for n, (a, b) in result.ci95.items()},
-        "std_error": {n: float(v) for n, v in result.std_error.items()},
+        "intervals": {n: [float(a), float(b)] if math.isfinite(a) and math.isfinite(b) else None
+                      for n, (a, b) in result.ci95.items()},
+        "std_error": {n: float(v) if math.isfinite(v) else None for n, v in result.std_error.items()},
         "correlation": {"parameters": list(result.free),
                         "matrix": [[float(v) for v in row] for row in np.asarray(result.correlation)]},
         "unidentifiable": list(result.unidentifiable),
