@@ -13,6 +13,25 @@ static int failures = 0;
         if (!(cond)) { std::printf("FAIL %s:%d: ", __FILE__, __LINE__); std::printf(__VA_ARGS__); std::printf("\n"); ++failures; } \
     } while (0)
 
+// the arrays a kt_fit_result points at, for k free parameters (and a cost history of capacity n_history)
+struct FitBuffers {
+    std::vector<double> values, std_error, covariance, correlation, singular_values, singular_vectors, history;
+    std::vector<int> unidentifiable, direction_flags;
+    kt_fit_result r;
+    explicit FitBuffers(int k, int n_history = 0)
+        : values(k), std_error(k), covariance(k * k), correlation(k * k), singular_values(k), singular_vectors(k * k),
+          history(n_history), unidentifiable(k), direction_flags(k)
+    {
+        std::memset(&r, 0, sizeof r);
+        r.values = values.data(); r.std_error = std_error.data(); r.covariance = covariance.data();
+        r.correlation = correlation.data(); r.singular_values = singular_values.data();
+        r.singular_vectors = singular_vectors.data(); r.unidentifiable = unidentifiable.data();
+        r.direction_flags = direction_flags.data();
+        r.cost_history = n_history ? history.data() : nullptr;
+        r.cost_history_capacity = n_history;
+    }
+};
+
 int main()
 {
     // table: every tether_params field named in modelDescription.xml is addressable by name
@@ -51,13 +70,9 @@ int main()
     const double lo[] = {100.0, 1e-3}, hi[] = {1e5, 100.0}, st[] = {2700.0, 2.0};
     kt_fit_options o;
     kt_fit_default_options(&o);
-    double val[2], se[2], cov[4], cor[4], svals[2], svec[4], hist[200];
-    int flags[2], dflags[2];
-    kt_fit_result r;
-    std::memset(&r, 0, sizeof r);
-    r.values = val; r.std_error = se; r.covariance = cov; r.correlation = cor; r.singular_values = svals;
-    r.singular_vectors = svec; r.unidentifiable = flags; r.direction_flags = dflags; r.cost_history = hist;
-    r.cost_history_capacity = 200;
+    FitBuffers fb(2, 200);
+    kt_fit_result &r = fb.r;
+    const double *val = fb.values.data();
     const int rc = kt_fit(&e, 1, 2, pn, lo, hi, st, nullptr, &o, &r);
     CHECK(rc == 0, "fit rc %d: %s / %s", rc, kt_last_error(), r.message);
     CHECK(std::fabs(val[0] / 3000.0 - 1) < 1e-6 && std::fabs(val[1] / 0.8 - 1) < 1e-5, "fit: EA %g c0 %g", val[0], val[1]);
@@ -87,12 +102,9 @@ int main()
         e.measured = shifted.data();
         const char *fn[] = {"EA", "c0", "offset_measured"};
         const double flo[] = {100.0, 1e-3, -1.0}, fhi[] = {1e5, 100.0, 1.0}, fst[] = {2700.0, 2.0, 0.0};
-        double v3[3], se3[3], cov3[9], cor3[9], sv3[3], svec3[9];
-        int fl3[3], df3[3];
-        kt_fit_result r3;
-        std::memset(&r3, 0, sizeof r3);
-        r3.values = v3; r3.std_error = se3; r3.covariance = cov3; r3.correlation = cor3; r3.singular_values = sv3;
-        r3.singular_vectors = svec3; r3.unidentifiable = fl3; r3.direction_flags = df3;
+        FitBuffers fb3(3);
+        kt_fit_result &r3 = fb3.r;
+        const double *v3 = fb3.values.data();
         const int rc3 = kt_fit(&e, 1, 3, fn, flo, fhi, fst, nullptr, &o, &r3);
         CHECK(rc3 == 0, "fit with offset rc %d: %s / %s", rc3, kt_last_error(), r3.message);
         CHECK(std::fabs(v3[0] / 3000.0 - 1) < 1e-6 && std::fabs(v3[2] - 0.0037) < 1e-9,
@@ -134,12 +146,9 @@ int main()
     {
         const char *qn[] = {"EA", "c0", "rtol"};
         const double qlo[] = {100.0, 1e-3, 1e-12}, qhi[] = {1e5, 100.0, 0.05}, qst[] = {2700.0, 2.0, 0.009995};
-        double qv[3], qse[3], qcov[9], qcor[9], qsv[3], qsvec[9];
-        int qf[3], qdf[3];
-        kt_fit_result q;
-        std::memset(&q, 0, sizeof q);
-        q.values = qv; q.std_error = qse; q.covariance = qcov; q.correlation = qcor; q.singular_values = qsv;
-        q.singular_vectors = qsvec; q.unidentifiable = qf; q.direction_flags = qdf;
+        FitBuffers fq(3);
+        kt_fit_result &q = fq.r;
+        const double *qv = fq.values.data();
         const int qrc = kt_fit(&e, 1, 3, qn, qlo, qhi, qst, nullptr, &o, &q);
         CHECK(qrc == 0, "fit with a refused Jacobian point: rc %d: %s", qrc, kt_last_error());
         CHECK(qrc != 0 || (std::fabs(qv[0] / 3000.0 - 1) < 1e-4 && std::fabs(qv[1] / 0.8 - 1) < 1e-3),
