@@ -140,9 +140,7 @@ class Search:
                         nuisance=self.nuisance)
         if not cur.ok:
             raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
-        t_sim = time.process_time()
-        predict(trace, cur.spec, cur.params)
-        t_sim = time.process_time() - t_sim
+        t_sim = _simulation_seconds(trace, cur)
         self.t_sim_start, self.n_free_start = t_sim, cur.n_free
         self.cap = max(5.0, 2000.0 * t_sim)
         self.fit_cap = self.cap          # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
@@ -183,17 +181,13 @@ class Search:
         simulations of the start model, and a model with an Iwan bank and a table of c(x) simulates
         several times slower; at least IWAN_STAGE_CAP_FACTOR, for a restarted bank's start simulates
         slower than the bank it comes from (docs/discovery.md, "Time")."""
-        t = time.process_time()
-        predict(self.trace, m.spec, m.params)
-        return max(IWAN_STAGE_CAP_FACTOR, 2000.0 * (time.process_time() - t) / self.cap)
+        return max(IWAN_STAGE_CAP_FACTOR, 2000.0 * _simulation_seconds(self.trace, m) / self.cap)
 
     def extension_cap_factor(self, m: ModelFit) -> float:
         """The time cap for fits that extend ``m``, as a multiple of the search's (which is counted
         in simulations of the start model): each simulation costs what one of ``m`` costs, and each
         Jacobian needs one per free parameter, so both ratios to the start model's, at least 1."""
-        t = time.process_time()
-        predict(self.trace, m.spec, m.params)
-        per_simulation = (time.process_time() - t) / max(self.t_sim_start, 1e-9)
+        per_simulation = _simulation_seconds(self.trace, m) / max(self.t_sim_start, 1e-9)
         return max(1.0, per_simulation) * max(1.0, (m.n_free + 1) / (self.n_free_start + 1))
 
     def out_of_budget(self, where: str) -> str:
@@ -595,6 +589,13 @@ class Search:
                 fitted = None
         self.fits = _on_whole_record(self.whole, self.fits, self.steps, self.removals, fitted)
         self.say(f"{self.fits[-1].model} on the whole record: RMS error {self.fits[-1].rms / self.sigma:.2f} x noise")
+
+
+def _simulation_seconds(trace: Trace, m: ModelFit) -> float:
+    """The CPU time of one simulation of ``m`` over ``trace`` (the unit of the search's time caps)."""
+    t = time.process_time()
+    predict(trace, m.spec, m.params)
+    return time.process_time() - t
 
 
 def _on_whole_record(whole: Trace, fits: list, steps: list, removals: list, fitted: ModelFit | None) -> list:
