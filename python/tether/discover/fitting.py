@@ -12,6 +12,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .. import nuisance as NZ
+from ..identify_native import FORWARD
 from ..models import ModelSpec, parse_model
 from ..traces import Trace
 from .laws import _floor, _POSITIVE, free_parameters, HELD_AT_START
@@ -176,7 +177,7 @@ class _DirectResult:
 
 #: engine options for every discovery fit (e.g. n_threads): the search compares candidates with
 #: forward differences; its final fit polishes the optimum with central ones (Search.final_fit)
-ENGINE_OPTIONS: dict = {"central_differences": 0}
+ENGINE_OPTIONS: dict = {"central_differences": FORWARD}
 
 
 #: independent fits run this many side by side, each on one thread: the candidates of a step, or
