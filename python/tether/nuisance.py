@@ -27,7 +27,8 @@ from .identify_native import MEASUREMENT_DEFAULTS
 from .traces import Trace
 
 __all__ = ["NUISANCE", "MEASUREMENT", "STATE", "DEFAULT_MASS_BAND", "INPUT_GAIN_BOUNDS", "mass_band_rel",
-           "check_mass_band", "mass_bounds", "mass_form", "refusal", "check_free", "freeable", "nuisance_box",
+           "check_mass_band", "mass_bounds", "mass_form", "refusal", "check_free", "freeable", "stated_values",
+           "nuisance_box",
            "drive_input", "measured_output", "moved_statement", "of_params_file"]
 
 #: the measurement parameters and their defaults (the engine's own list)
@@ -151,6 +152,17 @@ def _initial_velocity(trace: Trace) -> float:
     n = min(len(t), max(5, int(round(1.0 / (20.0 * f * dt)))))
     c = np.polyfit(t[:n] - t[0], y[:n], 2)
     return float(c[1])
+
+
+def stated_values(trace: Trace) -> dict:
+    """What the record states (or the tool assumes) for each nuisance parameter of its rig: the
+    value a fitted one's change is measured from (the JSON's mass and initial state, no offsets,
+    a unit gain)."""
+    out = dict(MEASUREMENT_DEFAULTS)
+    if trace.rig == "payload":
+        out.update(m=float(trace.payload_mass_kg), x0=float(trace.initial_displacement_m),
+                   v0=float(trace.initial_velocity_m_s))
+    return out
 
 
 def nuisance_box(trace: Trace, name: str, mass_band: float | None = None) -> tuple[float, float, float, str]:

@@ -99,7 +99,7 @@ def discovery_document(d: Discovery) -> dict:
         "rounds": rounds,
         "refinements": [r.as_dict(sigma) for r in d.refinements],
         "shape_refined": list(final.shape),
-        "nuisance": nuisance_section(tr, final),
+        "nuisance": nuisance_section(tr, final, d.nuisance_freed),
         "stop_reason": d.stop_reason,
         "seconds": d.seconds,
         "final_params": final_params,
@@ -151,7 +151,7 @@ def account(d: Discovery) -> str:
     if not d.added_effects:
         lines.append(nothing_named(d.final.rms / sigma, missing))
     lines.append(f"stopped: {d.stop_reason}")
-    lines += nuisance_lines(nuisance_section(d.trace, d.final))
+    lines += nuisance_lines(nuisance_section(d.trace, d.final, d.nuisance_freed))
     lines.append(f"discovered: {', '.join(d.added_effects) or 'nothing'}; final model {d.final.model}, RMS error "
                  f"{d.final.rms:.3g} m = {d.final.rms / sigma:.2f} x noise ({d.seconds:.1f} s)")
     return "\n".join(lines)

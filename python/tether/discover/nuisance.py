@@ -14,6 +14,10 @@ from ..traces import Trace
 from .fitting import ModelFit
 
 
+#: why a discovery run without its nuisance parameters kept each of them
+NOT_ASKED = "the discovery ran without nuisance parameters (--no-nuisance)"
+
+
 def nuisance_parameters(trace: Trace) -> list[str]:
     """The nuisance parameters every discovery fit of ``trace`` frees, from the start model on, so
     that no effect is credited with what they explain: the offset of the measured column on every
@@ -55,22 +59,13 @@ def nuisance_not_freed(trace: Trace) -> dict:
     return out
 
 
-def nuisance_record_values(trace: Trace) -> dict:
-    """What the record states (or the tool assumes) for each nuisance parameter: the start of
-    each and the value its change is measured from."""
-    out = {"offset_measured": 0.0, "offset_input": 0.0, "input_gain": 1.0}
-    if trace.rig == "payload":
-        out.update(m=float(trace.payload_mass_kg), x0=float(trace.initial_displacement_m),
-                   v0=float(trace.initial_velocity_m_s))
-    return out
-
-
-def nuisance_section(trace: Trace, fit: ModelFit) -> dict:
+def nuisance_section(trace: Trace, fit: ModelFit, freed: bool = True) -> dict:
     """The report's account of the nuisance parameters of the final model: per freed parameter the
     record's value (the start), the fitted value, its 95 % interval, the change in units of the
     interval's width and whether the interval leaves the record's value out (moved); the mass band;
-    what was kept at the record's value and why."""
-    start = nuisance_record_values(trace)
+    what was kept at the record's value and why (``freed`` false: the discovery ran without them,
+    and each is kept)."""
+    start = NZ.stated_values(trace)
     params = {}
     for n, v in fit.nuisance.items():
         s = start.get(n, 0.0)
@@ -86,7 +81,8 @@ def nuisance_section(trace: Trace, fit: ModelFit) -> dict:
                      "change_interval_widths": d / width if known else None,
                      "moved": bool(not lo <= s <= hi) if known else None}
     band = NZ.mass_band_rel(trace) if trace.rig == "payload" else None
-    return {"parameters": params, "not_freed": nuisance_not_freed(trace),
+    kept = nuisance_not_freed(trace) if freed else {n: NOT_ASKED for n in start}
+    return {"parameters": params, "not_freed": kept,
             "mass_band_rel": band,
             "mass_band_kg": ([float(trace.payload_mass_kg) * (1 - band), float(trace.payload_mass_kg) * (1 + band)]
                              if band is not None else None)}

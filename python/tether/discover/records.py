@@ -91,6 +91,7 @@ class Discovery:
     removals: list = field(default_factory=list)   # effects dropped again (Removal)
     refinements: list = field(default_factory=list)  # shape terms tried at the end (Refinement)
     searched_every: int = 1         # the search ran on every k-th sample (search_thinning)
+    nuisance_freed: bool = True     # every fit freed the record's nuisance parameters
 
     @property
     def final(self) -> ModelFit:
