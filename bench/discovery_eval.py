@@ -218,8 +218,7 @@ def main(argv=None) -> int:
 
     if a.budget is not None:
         DISCOVER_OPTIONS["budget"] = a.budget
-    # the nuisance family's records need their nuisance parameters freed (discover --nuisance)
-    DISCOVER_OPTIONS["free_nuisance"] = a.family == "nuisance" and not a.no_nuisance
+    DISCOVER_OPTIONS["free_nuisance"] = not a.no_nuisance
 
     outdir = Path(a.out or (f"/tmp/discovery_eval_{Path(a.traces).name}" if a.traces
                             else f"/tmp/discovery_eval_{'nuisance_' if a.family == 'nuisance' else ''}{a.n}_{a.seed}"))

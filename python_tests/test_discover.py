@@ -20,6 +20,7 @@ import hidden_effects as he
 from tether import discover as D
 from tether import models
 from tether.discover import document, fitting, judge, refine, rival, samples, scales, search, starts
+from tether.discover.nuisance import nuisance_start
 from tether.traces import read_trace
 
 REPO = Path(__file__).resolve().parents[1]
@@ -773,13 +774,15 @@ def test_a_long_record_searched_thinned_reports_the_whole_records_errors(tmp_pat
     sigma = tr.meta["hidden"]["noise_sigma_m"]
     assert doc["rmse_final"] <= 1.5 * sigma
     # the errors reported are the whole record's: the FMU reruns the final model on all 9001 samples
+    # (OUT.json as --params: the model's parameters and, for its own record, the nuisance values)
     measured = read_trace(stem).measured
-    final = tmp_path / "final.json"
-    final.write_text(json.dumps(doc["final_params"]))
-    assert _rerun_rms(run_cli, tmp_path, stem, final, measured) == pytest.approx(doc["rmse_final"], rel=1e-6)
+    rerun = _rerun_rms(run_cli, tmp_path, stem, tmp_path / "forced_long.discovery.json", measured)
+    assert rerun == pytest.approx(doc["rmse_final"], rel=1e-6)
     assert doc["steps"][0]["rmse_before"] == doc["rmse_initial"]
     # and the start model's values from every third sample fit the whole record as well as its own
     # fit to the whole record does
     whole = read_trace(stem)
-    lin = D.fit_model(whole, models.parse_model("linear", "forced"), (), [None], scales._scales(whole))
+    nz = D.nuisance_parameters(whole)
+    lin = D.fit_model(whole, models.parse_model("linear", "forced"), (), [nuisance_start(whole, nz), None],
+                      scales._scales(whole), nuisance=nz)
     assert 0.999 * lin.rms <= doc["rmse_initial"] <= 1.01 * lin.rms

@@ -43,7 +43,7 @@ def slack_forced(tmp_path_factory):
 def test_a_hidden_mass_and_an_offset_are_not_named_as_effects(slack_forced, run_cli, tmp_path):
     stem, tr = slack_forced
     out = tmp_path / "d.json"
-    status, stdout, err = run_cli("discover", stem, "--json", out, "--nuisance")
+    status, stdout, err = run_cli("discover", stem, "--json", out)
     assert status == 0, err
     doc = json.loads(out.read_text())
     sigma = tr.meta["hidden"]["noise_sigma_m"]
@@ -68,6 +68,16 @@ def test_without_the_nuisance_parameters_the_same_record_is_misread(slack_forced
     sigma = tr.meta["hidden"]["noise_sigma_m"]
     assert doc["added_effects"] != ["slack"] or doc["rmse_final"] > 1.5 * sigma, doc["added_effects"]
     assert doc["nuisance"]["parameters"] == {}
+    kept = doc["nuisance"]["not_freed"]
+    assert {"offset_measured", "m", "x0", "v0"} <= set(kept) and "--no-nuisance" in kept["offset_measured"]
+
+
+def test_a_mass_band_without_the_nuisance_parameters_is_refused(slack_forced, run_cli, tmp_path):
+    stem, _ = slack_forced
+    out = tmp_path / "d.json"
+    status, stdout, err = run_cli("discover", stem, "--json", out, "--mass-band", "0.2", "--no-nuisance")
+    assert status == 2 and len(err.strip().splitlines()) == 1 and "--no-nuisance" in err, err
+    assert not out.exists()
 
 
 def test_which_nuisance_parameters_discovery_frees(tmp_path):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+
 from .common import positive_number
 
 NAME = "discover"
@@ -26,11 +28,12 @@ parameter file of the discovered model: `tether simulate OTHER.csv --params OUT.
 flagged windows, and the gap shrinking step by step.
 --budget SECONDS bounds the run (default 900 s; long records at high rates with several effects
 can need more): a step whose fits are not all done when it is spent adds nothing.
---nuisance: every fit frees the record's nuisance parameters from the start model on (the offset of the
+Every fit frees the record's nuisance parameters from the start model on (the offset of the
 measured column; a forced record's initial state and effective mass, kept within
 payload_mass_kg * (1 +- --mass-band REL), default the trace's mass_uncertainty_rel, else 0.3;
-a free vibration's release point): OUT.json's `nuisance` section reports each with its interval
-and how far it moved (docs/nuisance-discovery.md).
+a free vibration's release point), so no effect is named for what they explain: OUT.json's
+`nuisance` section reports each with its interval and how far it moved
+(docs/nuisance-discovery.md). --no-nuisance keeps them at the record's values.
 
 --each TRACE... --out-dir DIR runs one independent discovery per record, each a task on Dask (a
 local cluster of one worker process per core, or --scheduler tcp://HOST:PORT): DIR/NAME.json per
@@ -54,10 +57,11 @@ def add_arguments(parser) -> None:
     add_scheduler_argument(parser)
     parser.add_argument("--report", metavar="DIR", help="write DIR/index.html with the story in plots")
     from .common import add_mass_band_argument
-    add_mass_band_argument(parser, "the effective mass (freed on forced records; implies --nuisance)")
-    parser.add_argument("--nuisance", action="store_true",
-                        help="free the record's nuisance parameters in every fit: the measured column's offset, "
-                             "a forced record's initial state and effective mass (docs/nuisance-discovery.md)")
+    add_mass_band_argument(parser, "the effective mass (freed on forced records)")
+    parser.add_argument("--nuisance", action=argparse.BooleanOptionalAction, default=True,
+                        help="free the record's nuisance parameters in every fit (the default): the measured "
+                             "column's offset, a forced record's initial state and effective mass "
+                             "(docs/nuisance-discovery.md); --no-nuisance keeps the record's values")
     parser.add_argument("--budget", metavar="SECONDS", type=positive_number("seconds"), default=None,
                         help="bound the run (default 900 s): a step not judged to the end when it is spent "
                              "adds nothing, and the account says so")
@@ -73,6 +77,9 @@ def run(args) -> int:
     from .console import Progress
 
     mass_band = mass_band_argument(args)
+    if mass_band is not None and not args.nuisance:
+        raise CLIError(f"--mass-band {args.mass_band}: the band bounds a freed mass, and --no-nuisance frees none; "
+                       "drop one of the two")
 
     if args.each:
         from .discover_each import run_each
@@ -88,7 +95,7 @@ def run(args) -> int:
     with Progress("discover", budget, unit="s", deadline=True) as bar:
         try:
             d = discover(trace, start=args.start, progress=bar.line, budget=budget, mass_band=mass_band,
-                         free_nuisance=args.nuisance or mass_band is not None)
+                         free_nuisance=args.nuisance)
         except DiscoveryError as e:
             raise CLIError(str(e), RUN_ERROR) from None
         except RuntimeError as e:

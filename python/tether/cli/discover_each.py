@@ -18,11 +18,11 @@ SUMMARY_COLUMNS = ("trace", "experiment", "added_effects", "final_model", "noise
 
 
 def discover_record(trace, start: str, budget: float | None, mass_band: float | None = None,
-                    free_nuisance: bool = False) -> dict:
+                    free_nuisance: bool = True) -> dict:
     """One record's discovery document (runs on a worker)."""
     from ..discover import discover, discovery_document
 
-    d = discover(trace, start=start, mass_band=mass_band, free_nuisance=free_nuisance or mass_band is not None,
+    d = discover(trace, start=start, mass_band=mass_band, free_nuisance=free_nuisance,
                  **({} if budget is None else {"budget": budget}))
     return discovery_document(d)
 

@@ -69,12 +69,12 @@ def _outranked(results: Sequence, win: CandidateResult) -> None:
 @in_one_blas_thread
 def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None] | None = None,
              max_steps: int = 4, heldout_candidates: int = 2, budget: float | None = DEFAULT_BUDGET,
-             mass_band: float | None = None, free_nuisance: bool = False) -> Discovery:
+             mass_band: float | None = None, free_nuisance: bool = True) -> Discovery:
     """Run the discovery loop on one trace (see the package docstring). ``progress`` receives one
     line per stage. ``budget`` [s] bounds the run: a step whose fits are not all done when it is
-    spent adds nothing, and the discovery stops with the model it has, saying so. With
-    ``free_nuisance`` every fit frees the record's nuisance parameters
-    (discover.nuisance.nuisance_parameters); ``mass_band``: the effective mass's band, relative to
+    spent adds nothing, and the discovery stops with the model it has, saying so. Every fit frees
+    the record's nuisance parameters (discover.nuisance.nuisance_parameters) unless
+    ``free_nuisance`` is false; ``mass_band``: the effective mass's band, relative to
     payload_mass_kg (default: the trace's mass_uncertainty_rel, else
     tether.nuisance.DEFAULT_MASS_BAND; 0 = the mass is exact)."""
     trace = copy.copy(trace)
@@ -209,7 +209,8 @@ class Search:
         return Discovery(trace=self.whole, noise=self.noise, start_model=self.spec.canonical, fits=self.fits,
                          steps=self.steps, stop_reason=self.stop, seconds=time.perf_counter() - self.t_begin,
                          heldout_start=float(self.trace.time[self.first]), removals=self.removals,
-                         refinements=self.refinements, searched_every=self.every)
+                         refinements=self.refinements, searched_every=self.every,
+                         nuisance_freed=bool(self.nuisance))
 
     def sweep(self, sweep: int) -> bool:
         """The search for effects step by step, then the shapes of the named laws. True where a
