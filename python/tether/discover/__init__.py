@@ -33,7 +33,7 @@ that polynomial closes only part of the gap, the candidate is fitted again with 
 (Criteria.damping_table_trigger) and competes with the better of the two,
 ``creep`` -> Kelvin cells and slip, ``slack`` -> no compression (no parameter of its own).
 
-The package, one job per module: ``laws`` (what an effect and a law are), ``noise``, ``scales``,
+The package, one job per module: ``laws`` (what an effect and a law are), ``scales``,
 ``samples`` (the held-out part, the thinning), ``fitting``, ``starts``, ``evidence`` (regimes,
 windows, signatures), ``judge`` (every threshold of acceptance), ``records``, ``refine`` (shapes),
 ``rival`` (rival laws, the Iwan stages), ``nuisance`` (the record's nuisance parameters), ``search`` (discover() itself),
@@ -48,7 +48,7 @@ from .document import account, discovery_document, ordinal
 from .evidence import Window, disagreement, regime_table, regimes, signatures
 from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, fit_model, predict
 from .laws import CANDIDATES, candidates, free_parameters
-from .noise import NoiseEstimate, estimate_noise
+from ..noise import NoiseEstimate, estimate_noise
 from .nuisance import nuisance_not_freed, nuisance_parameters, nuisance_section
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Step
 from .samples import search_thinning, thinned, thinned_input_miss

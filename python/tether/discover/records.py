@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 from ..traces import Trace
 from .fitting import ModelFit
-from .noise import NoiseEstimate
+from ..noise import NoiseEstimate
 
 
 class DiscoveryError(RuntimeError):

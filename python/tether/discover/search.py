@@ -20,7 +20,7 @@ from .fitting import _heldout, _side_by_side, DEFAULT_BUDGET, fit_model, ModelFi
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, bic_change,
                     full_data_verdict, heldout_verdict)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, RIVAL_LAWS
-from .noise import estimate_noise
+from ..noise import estimate_noise
 from .nuisance import nuisance_parameters, nuisance_start
 from .. import nuisance as NZ
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Retest, Step

@@ -46,7 +46,7 @@ import sys as _sys
 
 from .. import _CallableModule
 from .engine import fit_traces
-from .kinematics import noise_level
+from ..noise import noise_level
 from .parameters import default_free_parameters
 from .result import FitError, FitProgress, FitResult, write_fit_params
 from .start import initial_estimate

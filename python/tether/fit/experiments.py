@@ -14,7 +14,7 @@ from .. import nuisance as NZ
 from ..models import ModelSpec
 from ..run import _input_pieces, input_interpolation, record_period
 from ..traces import Trace
-from .kinematics import noise_level
+from ..noise import noise_level
 
 @dataclass
 class TraceExperiment:

@@ -1,42 +1,14 @@
-"""What the data say before any model: the measurement noise, the dominant frequency, and the
+"""What the data say before any model: the dominant frequency, and the
 payload's displacement, velocity and acceleration (filtered, or exact for a periodic record)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..run import record_period
 from ..traces import Trace
-
-def _robust_std(d: np.ndarray) -> float:
-    d = np.asarray(d, float)
-    d = d[np.isfinite(d)]
-    if d.size == 0:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(d - np.median(d))))
-
-
-def noise_level(trace: Trace) -> float:
-    """The measurement noise (standard deviation, measured unit) estimated from the data alone:
-    from the differences between periods of a periodic record, else from the 4th differences of
-    the measured column (robust scale; white noise gives 70 sigma^2)."""
-    y = np.asarray(trace.measured, float)
-    P = int(trace.periodic_samples or 0)
-    if P and len(y) >= 2 * P:
-        per = y.reshape(-1, P)
-        dev = per - per.mean(axis=0)
-        K = per.shape[0]
-        return float(np.sqrt(np.sum(dev ** 2) / (P * (K - 1))))
-    if len(y) < 8:
-        return float(np.std(y)) or 1.0
-    d4 = y[4:] - 4 * y[3:-1] + 6 * y[2:-2] - 4 * y[1:-3] + y[:-4]
-    s = _robust_std(d4) / math.sqrt(70.0)
-    if not s > 0:
-        s = float(np.std(np.diff(y))) / math.sqrt(2.0)
-    return s if s > 0 else max(1e-12, 1e-9 * float(np.max(np.abs(y))))
 
 
 def dominant_frequency(t: np.ndarray, y: np.ndarray) -> float:

@@ -1,4 +1,5 @@
-"""The measurement noise, estimated from the measured column alone (never from a fit)."""
+"""The measurement noise, estimated from the measured column alone (never from a fit): the one
+estimator of `tether fit` (its weights and report) and `tether discover` (its scale for every gap)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..traces import Trace
+from .traces import Trace
 
 
 def _divided_difference_weights(ts: np.ndarray, k: int) -> np.ndarray:
@@ -76,3 +77,11 @@ def estimate_noise(trace: Trace, kmax: int = 8) -> NoiseEstimate:
     sigma = float(np.mean(e[e <= 1.05 * lo]))
     return NoiseEstimate(sigma, "divided differences of orders 1-8 of the measured column (robust scale)",
                          [float(v) for v in e])
+
+
+def noise_level(trace: Trace) -> float:
+    """estimate_noise's sigma, floored for a noise-free record (a positive scale even where the
+    measured column is smooth to the last digit: 1e-9 of its largest value, at least 1e-12)."""
+    y = np.asarray(trace.measured, float)
+    sigma = estimate_noise(trace).sigma if len(y) >= 3 else 0.0
+    return sigma if sigma > 0 else max(1e-12, 1e-9 * float(np.max(np.abs(y))) if len(y) else 1e-12)
