@@ -104,6 +104,9 @@ def test_validate_and_discover_each_run_on_the_scheduler(dask_cluster, tmp_path)
     p = tether("discover", "--each", *traces, "--out-dir", out, "--scheduler", dask_cluster)
     summary = np.genfromtxt(out / "summary.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
     assert [str(n) for n in summary["trace"]] == ["stiffness_8m", "stiffness_12m"]
+    # the verdicts: the stiffness present; damping and slack undetermined in a quasi-static load test
+    assert [str(v) for v in summary["present"]] == ["nonlinear_stiffness"] * 2
+    assert all(set(str(v).split("+")) == {"nonlinear_damping", "slack"} for v in summary["undetermined"])
     for tr in traces:
         doc = json.loads((out / f"{tr.name}.json").read_text())
         assert doc["added_effects"] == ["nonlinear_stiffness"] and doc["rmse_final_over_noise"] < 1.2

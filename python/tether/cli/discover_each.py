@@ -14,7 +14,8 @@ import math
 from pathlib import Path
 
 SUMMARY_COLUMNS = ("trace", "experiment", "added_effects", "final_model", "noise_estimate", "rmse_initial",
-                   "rmse_final", "final_over_noise", "stop_reason")
+                   "rmse_final", "final_over_noise", "present", "undetermined", "unexplained_gap_noise",
+                   "stop_reason")
 
 
 def discover_record(trace, start: str, budget: float | None, mass_band: float | None = None,
@@ -27,11 +28,19 @@ def discover_record(trace, start: str, budget: float | None, mass_band: float | 
     return discovery_document(d)
 
 
+def _with_verdict(doc: dict, verdict: str) -> str:
+    """The effects OUT.json's ``effects`` gives ``verdict``, joined by '+'."""
+    return "+".join(e for e, v in (doc.get("effects") or {}).items() if v.get("verdict") == verdict)
+
+
 def summary_row(name: str, experiment: str, doc: dict) -> dict:
+    unexplained = doc.get("unexplained") or {}
     return {"trace": name, "experiment": experiment, "added_effects": "+".join(doc.get("added_effects") or []),
             "final_model": doc.get("final_model", ""), "noise_estimate": doc.get("noise_estimate"),
             "rmse_initial": doc.get("rmse_initial"), "rmse_final": doc.get("rmse_final"),
-            "final_over_noise": doc.get("rmse_final_over_noise"), "stop_reason": doc.get("stop_reason", "")}
+            "final_over_noise": doc.get("rmse_final_over_noise"), "present": _with_verdict(doc, "present"),
+            "undetermined": _with_verdict(doc, "undetermined"), "unexplained_gap_noise": unexplained.get("gap_noise"),
+            "stop_reason": doc.get("stop_reason", "")}
 
 
 def run_each(args) -> int:
