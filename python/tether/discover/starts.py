@@ -185,7 +185,18 @@ def _scale_elastic(p: dict, factor: float) -> dict:
 def candidate_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None = None) -> list[dict | None]:
     """Starting points for ``new`` (``base`` plus one effect): warm from the base fit, with the new
     terms at a few data-scaled values; None adds tether.fit's own data-based estimate; with the
-    ``trace``, equation-error starts where there is one (the Kelvin cells of a creep test)."""
+    ``trace``, equation-error starts where there is one (the Kelvin cells of a creep test).
+    Where ``base`` already has effects, the data-based estimate of the whole new model is always
+    among the starts: the base fit's terms have taken up what the new effect explains (an Iwan
+    bank fitted alone dissipates what a damping does), and warm starts keep them there."""
+    starts = _starts_for_effect(base, new, sc, trace)
+    if base.effects and None not in starts:
+        starts.append(None)
+    return starts
+
+
+def _starts_for_effect(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """candidate_starts by the effect ``new`` adds."""
     warm = dict(base.params)
     old = base.spec
     starts: list[dict | None] = []
