@@ -155,13 +155,17 @@ class Search:
             cap_factor=1.0) -> ModelFit:
         """fit_model with the search's shape terms free (and those they replace held), the unseen
         knots of the damping table held in a fit of the first part, the stage's time cap and the
-        budget's deadline; a fit that ends past the deadline marks the budget spent."""
+        budget's deadline; a fit that ends past the deadline marks the budget spent. The nuisance
+        parameters are constants of the whole record: a fit of its first part holds them at the
+        values its start carries (the whole record's fit of the same model), so that the held-out
+        test judges the law, not a mass or an offset refitted to bend the first part."""
         extra = tuple(extra) + tuple(k for k in self.shape_free if k not in extra and k in sp.parameters)
         held = tuple(held) + self.shape_held
         if tr is self.part:
             held += _knots_unseen(self.part, extra, starts)
         r = fit_model(tr, sp, eff, starts, scales, time_cap=cap_factor * self.fit_cap, extra=extra, held=held,
-                      deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms, nuisance=self.nuisance)
+                      deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms,
+                      nuisance=() if tr is self.part else self.nuisance)
         if self.deadline is not None and time.perf_counter() > self.deadline:
             self.budget_hit = True           # this fit may have been cut short: it cannot judge
         return r
