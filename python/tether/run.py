@@ -42,7 +42,7 @@ from .fmu import Description, FMUError, extract, fmu_path, model_description  # 
 from .models import ModelSpec, check_parameters, parse_model
 from .traces import Trace, TraceError, read_trace
 
-__all__ = ["simulate", "SimResult", "SimulationError", "model_description", "fmu_path", "FMUError"]
+__all__ = ["simulate", "SimResult", "SimulationError", "model_description", "fmu_path", "FMUError", "input_pieces"]
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 _STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal", 5: "fmi2Pending"}
@@ -196,7 +196,11 @@ def _linear_pieces(t: np.ndarray, y: np.ndarray, periodic_period: float | None):
     return np.ascontiguousarray(y[:-1], dtype=float), ders
 
 
-def _input_pieces(t, y, periodic_period, kind):
+def input_pieces(t, y, periodic_period, kind):
+    """(values, derivatives[n, 3]) of the input's interpolant piece by piece from each sample, as
+    the FMU and the engine are driven: ``kind`` "linear", "pchip" or the cubic spline (periodic
+    over ``periodic_period`` where given). One rule for the FMU's run, the engine's experiments and
+    discovery's thinning check."""
     if kind == "linear":
         return _linear_pieces(t, y, periodic_period)
     return _spline_pieces(t, y, periodic_period, monotone=kind == "pchip")
@@ -398,13 +402,13 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
         Tp = record_period(t, P)
         h = np.diff(t[:P]).tolist() + [Tp - float(t[P - 1] - t[0])]
         if in_name:
-            in_values, in_ders = _input_pieces(t[:P], trace.input[:P], Tp, input_interpolation(trace))
+            in_values, in_ders = input_pieces(t[:P], trace.input[:P], Tp, input_interpolation(trace))
         else:
             in_values = in_ders = None
     else:
         h = np.diff(t).tolist()
         if in_name:
-            in_values, in_ders = _input_pieces(t, trace.input, None, input_interpolation(trace))
+            in_values, in_ders = input_pieces(t, trace.input, None, input_interpolation(trace))
         else:
             in_values = in_ders = None
 

@@ -56,7 +56,7 @@ def thinned_input_miss(trace: Trace, k: int) -> float:
     """How far the input rebuilt from every k-th sample misses the samples dropped (RMS), carried
     to the measured column by the ratio of the columns' standard deviations [unit of the measured
     column]; 0 for a record without input."""
-    from ..run import _input_pieces, input_interpolation, record_period
+    from ..run import input_pieces, input_interpolation, record_period
 
     if trace.input is None:
         return 0.0
@@ -68,7 +68,7 @@ def thinned_input_miss(trace: Trace, k: int) -> float:
         period = record_period(t, P)
         t, u = t[:P], u[:P]
     keep = _kept_samples(len(t), k, bool(P))
-    vals, ders = _input_pieces(t[keep], u[keep], period, input_interpolation(trace))
+    vals, ders = input_pieces(t[keep], u[keep], period, input_interpolation(trace))
     drop = np.setdiff1d(np.arange(len(t)), keep)
     i = np.searchsorted(t[keep], t[drop], side="right") - 1
     s = t[drop] - t[keep][i]

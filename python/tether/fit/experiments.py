@@ -12,7 +12,7 @@ import numpy as np
 from .. import identify_native as idn
 from .. import nuisance as NZ
 from ..models import ModelSpec
-from ..run import _input_pieces, input_interpolation, record_period
+from ..run import input_pieces, input_interpolation, record_period
 from ..traces import Trace
 from ..noise import noise_level
 
@@ -52,7 +52,7 @@ def trace_experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str,
         tt = t[:P]
         meas = y.reshape(K, P).mean(axis=0)
         if kind != idn.INPUT_NONE:
-            inp, der = _input_pieces(tt, np.asarray(trace.input, float)[:P], Tp, input_interpolation(trace))
+            inp, der = input_pieces(tt, np.asarray(trace.input, float)[:P], Tp, input_interpolation(trace))
         # the engine closes a period with (t[P-1] - t[0]) P / (P - 1): exact for uniform sampling
         uniform = abs(float(t[P - 1] - t[0]) * P / (P - 1) - Tp) <= 1e-9 * Tp
         if not uniform:
@@ -67,7 +67,7 @@ def trace_experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str,
                            output=trace.measured_column, measured=meas, periodic_samples=P)
         return TraceExperiment(trace, e, K, noise_level(trace))
     if kind != idn.INPUT_NONE:
-        vals, ders = _input_pieces(t, np.asarray(trace.input, float), None, input_interpolation(trace))
+        vals, ders = input_pieces(t, np.asarray(trace.input, float), None, input_interpolation(trace))
         inp = np.append(vals, float(trace.input[-1]))
         der = np.vstack([ders, np.zeros((1, 3))])
     e = idn.Experiment(t, settings=settings, input_kind=kind, input=inp, input_der=der,
