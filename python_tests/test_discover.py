@@ -558,9 +558,12 @@ def test_bundled_trace_two_effects_json_report_and_rerun(tmp_path, run_cli):
             assert 0.0 <= w["start_s"] < w["end_s"] <= t_end + 1e-9
         assert s["evidence"]
     # the final model is the last step's, or the last shape refinement kept after it (the power
-    # term of the cubic follows the generator's power law: 1.41 -> 1.01 x noise on this record)
+    # term of the cubic follows the generator's power law: 1.41 -> 1.01 x noise on this record),
+    # fitted once more to the whole record, which may only lower its error
     kept = [r for r in doc["refinements"] if r["accepted"]]
-    assert doc["rmse_final"] == pytest.approx(kept[-1]["rmse_after"] if kept else prev)
+    if kept:
+        assert set(kept[-1]["parameters"]) <= set(doc["shape_refined"])
+    assert doc["rmse_final"] <= (kept[-1]["rmse_after"] if kept else prev) * (1 + 1e-9)
     assert doc["rmse_final"] <= prev
     # every candidate fitted says what it cost, the rejected ones too (their curves are dropped)
     fitted = [c for r in doc["rounds"] for c in r["candidates"]
