@@ -5,6 +5,7 @@ model's prediction on the trace's own time grid."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Mapping
 
 import numpy as np
@@ -16,6 +17,7 @@ from ..run import input_pieces, input_interpolation, record_period
 from ..traces import Trace
 from ..noise import noise_level
 
+
 @dataclass
 class TraceExperiment:
     """A trace and the engine experiment built from it."""
@@ -23,13 +25,18 @@ class TraceExperiment:
     trace: Trace
     exp: idn.Experiment
     periods: int          # K (periodic records are fitted as their mean period)
-    noise: float
+
+    @cached_property
+    def noise(self) -> float:
+        """The trace's noise level (tether.noise), computed where a fit weighs or reports it: a
+        prediction needs none (estimating it costs more than a simulation of a long record)."""
+        return noise_level(self.trace)
 
 
 def trace_experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str, float]) -> TraceExperiment:
     """The engine experiment of ``trace`` under ``spec``: the rig of its experiment, L0 (and m, g,
     x0, v0, line density) from its metadata, the FMU's switches, ``settings_extra`` (held or fixed
-    values; nuisance values among them win over the metadata) and its noise level."""
+    values; nuisance values among them win over the metadata)."""
     sp = spec.for_experiment(trace.experiment)
     settings = {k: float(v) for k, v in sp.switches.items()}
     settings.update({k: float(v) for k, v in settings_extra.items()})
@@ -62,17 +69,17 @@ def trace_experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str,
                 inp, der = np.tile(inp, 2), np.tile(der, (2, 1))
             e = idn.Experiment(tt, settings=settings, input_kind=kind, input=inp, input_der=der,
                                output=trace.measured_column, measured=meas, periodic_samples=P)
-            return TraceExperiment(trace, e, K / 2.0, noise_level(trace))
+            return TraceExperiment(trace, e, K / 2.0)
         e = idn.Experiment(tt, settings=settings, input_kind=kind, input=inp, input_der=der,
                            output=trace.measured_column, measured=meas, periodic_samples=P)
-        return TraceExperiment(trace, e, K, noise_level(trace))
+        return TraceExperiment(trace, e, K)
     if kind != idn.INPUT_NONE:
         vals, ders = input_pieces(t, np.asarray(trace.input, float), None, input_interpolation(trace))
         inp = np.append(vals, float(trace.input[-1]))
         der = np.vstack([ders, np.zeros((1, 3))])
     e = idn.Experiment(t, settings=settings, input_kind=kind, input=inp, input_der=der,
                        output=trace.measured_column, measured=y)
-    return TraceExperiment(trace, e, 1, noise_level(trace))
+    return TraceExperiment(trace, e, 1)
 
 
 def predict(x: TraceExperiment, params: Mapping[str, float]) -> np.ndarray:
