@@ -106,6 +106,12 @@ DEFAULT_BUDGET = 900.0
 OUT_OF_BUDGET = "stopped: the discovery's time budget is spent"
 
 
+def _held_nuisance(start: dict | None, names: Sequence[str]) -> dict:
+    """The nuisance values ``start`` carries that a fit of ``names`` does not free: it holds them
+    there (a held-out part fit, Search.fit), and its parameters keep them."""
+    return {k: float(start[k]) for k in NZ.NUISANCE if start and k in start and k not in names}
+
+
 def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, deadline: float | None = None,
               own_thread: bool = False, **options):
     """One fit through tether.fit.fit_traces; on a failure of its staging (a log-scaled parameter
@@ -122,8 +128,7 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
     st = None if start is None else _clean_start(names, start, sc)
     held = {k: float(start[k]) for k in HELD_AT_START if start and k in start and k not in names
             and k in spec.parameters}
-    # nuisance values the start carries but the fit does not free: held there (a held-out part fit)
-    held.update({k: float(start[k]) for k in NZ.NUISANCE if start and k in start and k not in names})
+    held.update(_held_nuisance(start, names))
     options = {**ENGINE_OPTIONS, **options}
     if deadline is not None and time.perf_counter() >= deadline:
         return None, OUT_OF_BUDGET
@@ -316,8 +321,7 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
                         predicted=np.full(len(trace.time), np.nan), evaluations=evaluations,
                         seconds=time.perf_counter() - t0, ok=False, message=msg or "fit failed")
     params = dict(best.parameters)
-    won = starts[best_i] or {}
-    params.update({n: float(won[n]) for n in NZ.NUISANCE if n in won and n not in names})   # held
+    params.update(_held_nuisance(starts[best_i], names))
     params.update({n: float(best.values[n]) for n in best.free if n in NZ.NUISANCE})
     return ModelFit(spec=spec, effects=tuple(effects), params=params, free=list(best.free),
                     rms=float(best.rms), predicted=np.asarray(best.predictions[0]), evaluations=evaluations,
