@@ -69,7 +69,9 @@ def test_without_the_nuisance_parameters_the_same_record_is_misread(slack_forced
     assert doc["added_effects"] != ["slack"] or doc["rmse_final"] > 1.5 * sigma, doc["added_effects"]
     assert doc["nuisance"]["parameters"] == {}
     kept = doc["nuisance"]["not_freed"]
-    assert {"offset_measured", "m", "x0", "v0"} <= set(kept) and "--no-nuisance" in kept["offset_measured"]
+    # the parameters that apply to the record, each kept: the force gain is known, so no input_gain
+    assert set(kept) == {"offset_measured", "m", "x0", "v0", "offset_input"}
+    assert "--no-nuisance" in kept["offset_measured"]
 
 
 def test_a_mass_band_without_the_nuisance_parameters_is_refused(slack_forced, run_cli, tmp_path):

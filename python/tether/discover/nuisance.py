@@ -59,6 +59,11 @@ def nuisance_not_freed(trace: Trace) -> dict:
     return out
 
 
+def _record_nuisance(trace: Trace) -> list[str]:
+    """The nuisance parameters that apply to the record: those discovery frees and those it keeps."""
+    return nuisance_parameters(trace) + list(nuisance_not_freed(trace))
+
+
 def nuisance_section(trace: Trace, fit: ModelFit, freed: bool = True) -> dict:
     """The report's account of the nuisance parameters of the final model: per freed parameter the
     record's value (the start), the fitted value, its 95 % interval, the change in units of the
@@ -81,7 +86,7 @@ def nuisance_section(trace: Trace, fit: ModelFit, freed: bool = True) -> dict:
                      "change_interval_widths": d / width if known else None,
                      "moved": bool(not lo <= s <= hi) if known else None}
     band = NZ.mass_band_rel(trace) if trace.rig == "payload" else None
-    kept = nuisance_not_freed(trace) if freed else {n: NOT_ASKED for n in start}
+    kept = nuisance_not_freed(trace) if freed else {n: NOT_ASKED for n in _record_nuisance(trace)}
     return {"parameters": params, "not_freed": kept,
             "mass_band_rel": band,
             "mass_band_kg": ([float(trace.payload_mass_kg) * (1 - band), float(trace.payload_mass_kg) * (1 + band)]
