@@ -734,12 +734,13 @@ def test_a_named_slack_is_shown_with_the_balance_of_the_slack_model(tmp_path):
 
 # ---------------------------------------------------------------------------------------------
 # a long record searched on every k-th sample, its final model fitted to the whole record
-def _sine_forced(write_trace, name, f_hz, n, periodic=None, rate=1000.0):
+def _sine_forced(write_trace, name, f_hz, n, periodic=None, rate=1000.0, interpolation=None):
     """A forced record with a sinusoidal force of f_hz sampled at ``rate``; the displacement a
     sinusoid with 1e-5 m of noise."""
     t = np.arange(n) / rate
     x = 1e-3 * np.sin(2 * np.pi * f_hz * t - 0.3) + 1e-5 * np.random.default_rng(3).standard_normal(n)
-    meta = write_trace.meta("forced", **({"periodic_samples": periodic} if periodic else {}))
+    meta = write_trace.meta("forced", **({"periodic_samples": periodic} if periodic else {}),
+                            **({"input_interpolation": interpolation} if interpolation else {}))
     return read_trace(write_trace(name, meta, {"time": t, "force": 10 * np.sin(2 * np.pi * f_hz * t),
                                                "displacement": x}))
 
@@ -754,6 +755,14 @@ def test_a_long_record_is_thinned_only_where_its_input_is_rebuilt_within_the_noi
     fast = _sine_forced(write_trace, "fast", 120.0, 20000)
     assert D.thinned_input_miss(fast, 2) > 1e-5
     assert D.search_thinning(fast, 1e-5) == 1
+    # an 8 Hz sine the record says to join by straight lines: through every 5th sample they miss it
+    # by (wh)^2 / 8 = 0.8 % of its amplitude, above the noise carried to the force; the thinned
+    # record rebuilds its input with a cubic spline, (wh)^4 / 384 = 1e-5 of it
+    lines = _sine_forced(write_trace, "lines", 8.0, 20000, interpolation="linear")
+    assert D.thinned_input_miss(lines, 5, "linear") > 0.05 * 1e-5 > D.thinned_input_miss(lines, 5, "spline")
+    assert D.search_thinning(lines, 1e-5) == 5
+    assert D.thinned(lines, 5).meta["input_interpolation"] == "spline"
+    assert lines.meta["input_interpolation"] == "linear"
     # a periodic record: k divides the period, and the thinned record keeps whole periods
     per = _sine_forced(write_trace, "per", 1.0, 12000, periodic=6000, rate=6000.0)
     assert D.search_thinning(per, 1e-5) == 2

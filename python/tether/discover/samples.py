@@ -52,14 +52,17 @@ def _kept_samples(n: int, k: int, periodic: bool) -> np.ndarray:
     return keep if periodic or keep[-1] == n - 1 else np.append(keep, n - 1)
 
 
-def thinned_input_miss(trace: Trace, k: int) -> float:
-    """How far the input rebuilt from every k-th sample misses the samples dropped (RMS), carried
-    to the measured column by the ratio of the columns' standard deviations [unit of the measured
-    column]; 0 for a record without input."""
-    from ..run import input_pieces, input_interpolation, record_period
+def thinned_input_miss(trace: Trace, k: int, kind: str | None = None) -> float:
+    """How far the input rebuilt from every k-th sample (with the interpolation ``kind``; by default
+    the one thinned() picks) misses the samples dropped (RMS), carried to the measured column by the
+    ratio of the columns' standard deviations [unit of the measured column]; 0 for a record without
+    input."""
+    from ..run import input_pieces, record_period
 
     if trace.input is None:
         return 0.0
+    if kind is None:
+        kind = thinned_interpolation(trace, k)
     t = np.asarray(trace.time, float)
     u = np.asarray(trace.input, float)
     P = int(trace.periodic_samples or 0)
@@ -68,7 +71,7 @@ def thinned_input_miss(trace: Trace, k: int) -> float:
         period = record_period(t, P)
         t, u = t[:P], u[:P]
     keep = _kept_samples(len(t), k, bool(P))
-    vals, ders = input_pieces(t[keep], u[keep], period, input_interpolation(trace))
+    vals, ders = input_pieces(t[keep], u[keep], period, kind)
     drop = np.setdiff1d(np.arange(len(t)), keep)
     i = np.searchsorted(t[keep], t[drop], side="right") - 1
     s = t[drop] - t[keep][i]
@@ -79,10 +82,24 @@ def thinned_input_miss(trace: Trace, k: int) -> float:
     return float(np.sqrt(np.mean((rebuilt - u[drop]) ** 2))) * float(np.std(trace.measured)) / spread_u
 
 
+def thinned_interpolation(trace: Trace, k: int) -> str:
+    """How the thinned record rebuilds its input between the kept samples: the record's own
+    interpolation, or a cubic spline where that misses the dropped samples less (straight lines
+    through every k-th sample of a smooth input miss it by (kh)^2 |u''| / 8, a spline by a power of
+    kh four; a step in the input makes a spline ring, and the record's own kind is kept)."""
+    from ..run import input_interpolation
+
+    own = input_interpolation(trace)
+    if trace.input is None or own == "spline" or k <= 1:
+        return own
+    return min((own, "spline"), key=lambda kind: thinned_input_miss(trace, k, kind))
+
+
 def search_thinning(trace: Trace, sigma: float) -> int:
     """k: the search runs on every k-th sample (1: on the whole record). The largest k up to what
     brings the simulated samples (one period of a periodic record) to SEARCH_SAMPLES whose input
-    is rebuilt within THINNED_INPUT_SHARE of the noise (a periodic record: k divides its period)."""
+    is rebuilt (thinned_interpolation) within THINNED_INPUT_SHARE of the noise (a periodic record:
+    k divides its period)."""
     P = int(trace.periodic_samples or 0)
     k_max = math.ceil((P or len(trace.time)) / SEARCH_SAMPLES)
     for k in range(k_max, 1, -1):
@@ -94,9 +111,13 @@ def search_thinning(trace: Trace, sigma: float) -> int:
 
 
 def thinned(trace: Trace, k: int) -> Trace:
-    """The record on every k-th sample (search_thinning's k; a periodic record keeps whole periods)."""
+    """The record on every k-th sample (search_thinning's k; a periodic record keeps whole periods),
+    its input rebuilt between them as thinned_interpolation says."""
     P = int(trace.periodic_samples or 0)
     out = _samples_of(trace, _kept_samples(len(trace.time), k, bool(P)))
     if P:
         out.periodic_samples = P // k
+    if trace.input is not None:
+        out.meta = {**(trace.meta if isinstance(trace.meta, dict) else {}),
+                    "input_interpolation": thinned_interpolation(trace, k)}
     return out
