@@ -496,6 +496,8 @@ def test_a_polynomial_damping_refused_on_the_held_out_part_gives_way_to_the_tabl
     assert poly and not poly[0]["accepted"] and "held-out" in poly[0]["verdict"], poly
     print(f"FIGURE Iwan + Gaussian damping from the linear start: rmse_final {doc['rmse_final'] / sigma:.2f} x noise")
     assert doc["rmse_final"] <= 1.5 * sigma
+    # the refined model misses by less than the noise itself (gap below sigma): no second search
+    assert "searching again" not in progress, doc["rmse_final"] / sigma
 
 
 @pytest.mark.parametrize("effects, acts", [((), False), (("slack",), True)])

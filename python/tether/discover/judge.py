@@ -59,7 +59,8 @@ class Criteria:
     #: the Iwan bank's last stages run where the bank misses the record by this gap [sigma] or more
     iwan_stages_gap: float = 1.0
     #: the final model leaves something unexplained where its gap is this many sigma or more (RMS
-    #: error >= 1.41 x noise): the residual then holds at least as much as the noise itself
+    #: error >= 1.41 x noise): the residual then holds at least as much as the noise itself; a
+    #: refined model that misses by less is not searched again for a further effect
     unexplained_gap: float = 1.0
 
 

@@ -218,9 +218,11 @@ class Search:
 
     def sweep(self, sweep: int) -> bool:
         """The search for effects step by step, then the shapes of the named laws. True where a
-        shape was kept in the first sweep: a law of the wrong shape can hide a further effect
-        behind its own misfit (a drag-damped record with slack was named nonlinear damping alone at
-        3-12 x noise), so the search runs once more from the refined model, its shape terms free."""
+        shape was kept in the first sweep and the refined model still misses the record by the
+        noise or more (CRITERIA.unexplained_gap): a law of the wrong shape can hide a further
+        effect behind its own misfit (a drag-damped record with slack was named nonlinear damping
+        alone at 3-12 x noise), so the search runs once more from the refined model, its shape
+        terms free."""
         self.fit_cap = self.cap if sweep == 1 else SECOND_SEARCH_CAP_SHARE * self.cap
         effects_before = self.cur.effects
         while self.step():
@@ -243,7 +245,9 @@ class Search:
             return False
         self.fits.append(refined)
         self.cur = refined
-        if sweep == 2 or self.cur.rms <= CRITERIA.within_noise * self.sigma:
+        if sweep == 2 or _gap(self.cur.rms, self.sigma) < CRITERIA.unexplained_gap * self.sigma:
+            # (a further effect must halve the gap: below the noise itself, what is left is too
+            # little to hide one; docs/discovery.md, "The search, step by step")
             if math.isfinite(refined_held):
                 self.cur_held = refined_held
             return False
