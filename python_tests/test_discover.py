@@ -188,10 +188,10 @@ def test_shape_refinement_follows_a_damping_that_levels_off(tmp_path, run_cli):
 
 def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, capsys):
     """The eval's forced record with the generator's Iwan friction and slack (seed 30), 10 s at
-    100 Hz (the figures here at 200 Hz; at 100 Hz the test prints its own): without slack the two hysteresis laws tie (Bouc-Wen 23.1, Iwan 23.2 x noise) and
-    Bouc-Wen may win the step; slack then brings it to 6.2 x. rival_law fits the final model again
-    with the Iwan bank in Bouc-Wen's place, and the law the generator used wins on the whole record
-    and on the held-out part."""
+    100 Hz (the figures here at 200 Hz; at 100 Hz the test prints its own): without slack the two
+    hysteresis laws tie (Bouc-Wen 23.1, Iwan 23.2 x noise) and Bouc-Wen may win the step; slack
+    then brings it to 6.2 x. rival_law fits the final model again with the Iwan bank in Bouc-Wen's
+    place, and the law the generator used wins on the whole record and on the held-out part."""
     from tether.models import parse_model
 
     stem, gen = _write(tmp_path, "forced_iwan_slack", "forced", {"hysteresis", "slack"}, 30, noise=1e-4,
