@@ -5,7 +5,7 @@
 #   3. ldd / nm                 build/KevlarTether.so depends on libc/libm only, exports fmi2* only
 #   4. sources/ rebuild         fmpy compile of the FMU's sources/ + simulate, same results as ours
 #   5. test_identify            the identification engine's own C++ test
-#   6. pytest                   python_tests (no tests collected counts as a failure)
+#   6. pytest                   python_tests, a worker per core (no tests collected counts as a failure)
 set -uo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR="${KT_BUILD_DIR:-build}"
@@ -44,8 +44,8 @@ check "fmpy compile + simulate from sources/" "$PY" scripts/check_fmu_sources.py
 check "identification engine (C++ test)" "$BUILD_DIR/fmu_src/identify/test_identify"
 echo "build checks: $passed passed, $failed failed"
 
-echo "==> [test] pytest python_tests"
-"$PY" -m pytest python_tests -q
+echo "==> [test] pytest python_tests (one worker per core: docs/test-suite-time.md)"
+"$PY" -m pytest python_tests -q -n auto --dist worksteal
 rc=$?
 if [ $rc -eq 5 ]; then
   echo "test.sh: pytest collected no tests -- counted as a failure" >&2
