@@ -12,7 +12,8 @@
 /* ---- elastic law (paper: nonlinear stiffness) -------------------------------------------- */
 /* Tension of the elastic law at strain eps, not clamped: linear EA eps, or the cubic
  * a1 eps + a2 eps^2 + a3 eps^3 (the same law for every length) plus the power term
- * pow_F sgn(eps) |eps / pow_eps|^pow_n (0 unless pow_F > 0). */
+ * pow_F sgn(eps) |eps / pow_eps|^pow_n (0 unless pow_F > 0), or the exponential
+ * exp_F (exp(eps / exp_eps) - 1) (a stiffness exp_F / exp_eps at eps = 0 that grows with strain). */
 double elastic_tension(const tether_params *p, double eps);
 /* dF/deps of the elastic law. */
 double elastic_stiffness(const tether_params *p, double eps);

@@ -144,6 +144,7 @@ static double stiffness_scale(const tether_model *M)
 {
     const tether_params *p = &M->p;
     if (p->hysteresis == HYSTERESIS_KAWABATA) return p->kaw_F_ref / p->kaw_eps_ref;
+    if (p->stiffness == STIFFNESS_EXPONENTIAL) return p->exp_F / p->exp_eps;
     return p->stiffness == STIFFNESS_LINEAR ? p->EA : p->a1;
 }
 
@@ -235,7 +236,7 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     const tether_params *p = &M->p;
 #define FAIL(...) do { snprintf(msg, len, __VA_ARGS__); return -1; } while (0)
     if (p->rig < RIG_ELEMENT || p->rig > RIG_LOAD) FAIL("rig = %d: expected 1 (element), 2 (payload) or 3 (load)", p->rig);
-    if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_CUBIC) FAIL("stiffness = %d: expected 1 (linear) or 2 (cubic)", p->stiffness);
+    if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_EXPONENTIAL) FAIL("stiffness = %d: expected 1 (linear), 2 (cubic) or 3 (exponential)", p->stiffness);
     if (p->damping < DAMPING_VISCOUS || p->damping > DAMPING_DISPLACEMENT) FAIL("damping = %d: expected 1 (viscous) or 2 (displacement)", p->damping);
     if (p->hysteresis < HYSTERESIS_NONE || p->hysteresis > HYSTERESIS_IWAN) FAIL("hysteresis = %d: expected 1 (none), 2 (kawabata), 3 (boucwen) or 4 (iwan)", p->hysteresis);
     if (p->integrator < INTEGRATOR_AUTO || p->integrator > INTEGRATOR_ADAMS) FAIL("integrator = %d: expected 1 (auto), 2 (bdf) or 3 (adams)", p->integrator);
@@ -247,6 +248,10 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (!(p->g >= 0.0)) FAIL("g = %g m/s2: expected g >= 0", p->g);
     if (p->stiffness == STIFFNESS_LINEAR && p->hysteresis != HYSTERESIS_KAWABATA && !(p->EA > 0.0)) FAIL("EA = %g N: the linear law needs EA > 0", p->EA);
     if (p->stiffness == STIFFNESS_CUBIC && p->hysteresis != HYSTERESIS_KAWABATA && !(p->a1 > 0.0)) FAIL("a1 = %g N: the cubic law needs a1 > 0", p->a1);
+    if (p->stiffness == STIFFNESS_EXPONENTIAL && p->hysteresis != HYSTERESIS_KAWABATA) {
+        if (!(p->exp_F > 0.0) || !isfinite(p->exp_F)) FAIL("exp_F = %g N: the exponential law needs exp_F > 0", p->exp_F);
+        if (!(p->exp_eps > 0.0) || !isfinite(p->exp_eps)) FAIL("exp_eps = %g: the exponential law needs a positive strain scale", p->exp_eps);
+    }
     if (!(p->pow_F >= 0.0)) FAIL("pow_F = %g N: expected pow_F >= 0", p->pow_F);
     if (!(p->pow_eps > 0.0) || !isfinite(p->pow_eps)) FAIL("pow_eps = %g: the power term's reference strain must be positive", p->pow_eps);
     if (!(p->pow_n >= 1.0 && p->pow_n <= 4.0)) FAIL("pow_n = %g: expected an exponent in [1, 4]", p->pow_n);

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..models import ModelSpec
 from ..traces import Trace
-from .elastic import cubic_inverse
+from .elastic import elastic_inverse
 from .equation_error import scaled_nnls
 
 
@@ -84,11 +84,7 @@ def creep_estimate(traces: Sequence[Trace], spec: ModelSpec, values: Mapping[str
     creep_traces = [tr for tr in traces if tr.experiment == "creep"]
     if not creep_traces:
         return {}
-    if spec.stiffness == "cubic":
-        inv = cubic_inverse({n: values[n] for n in ("a1", "a2", "a3", "pow_F", "pow_eps", "pow_n")})
-    else:
-        EA = values.get("EA", 3500.0)
-        inv = lambda T: np.asarray(T) / EA  # noqa: E731
+    inv = elastic_inverse(spec.stiffness, values)
     taus = [values.get(f"creep_tau{k}", v) for k, v in ((1, 1800.0), (2, 5400.0), (3, 172800.0))]
     slip_tau = values.get("slip_regen_tau", 3600.0)
     J, slip = _creep_compliances(creep_traces, inv, taus, slip_tau)
