@@ -175,3 +175,136 @@ def test_fit_exponential_model_of_a_free_vibration_from_the_taylor_coefficients(
           f"{start['exp_eps']:.4g}; fitted {fitted['exp_F']:.5g} N, {fitted['exp_eps']:.5g} (truth {F_E}, {EPS_E})")
     assert abs(start["exp_F"] / F_E - 1) < 0.05 and abs(start["exp_eps"] / EPS_E - 1) < 0.05
     assert abs(fitted["exp_F"] / F_E - 1) < 5e-3 and abs(fitted["exp_eps"] / EPS_E - 1) < 5e-3
+
+
+# ---- primary creep: strain hardening, (C/n)((1 + t/tau)^n - 1) or C ln(1 + t/tau), C = J T -----
+EA_CREEP = 3000.0
+PRIMARY = dict(rig=3, stiffness=1, EA=EA_CREEP, damping=1, hysteresis=1, creep=True, creep_law=2, slack=False,
+               creep_J1=0.0, creep_J2=0.0, creep_J3=0.0, primary_J=2e-6, primary_tau=30.0, L0=L0)
+
+
+def primary_closed_form(t, T_of, breaks, J, tau, n):
+    """The primary creep strain under a load constant between ``breaks`` (T_of(t) there), written
+    out from docs/models.md: on each segment eps = (C/n)((1 + (t - t_s + t_eq)/tau)^n - 1)
+    (C ln(1 + ...) at n = 0), C = J T, with t_eq the time at which the segment's law reaches the
+    strain the segment starts from (strain hardening); no change where T = 0."""
+    t = np.asarray(t, float)
+    out = np.zeros_like(t)
+    eps0, edges = 0.0, [t[0]] + list(breaks) + [np.inf]
+    for a, b in zip(edges[:-1], edges[1:]):
+        C = J * T_of(a)
+        sel = (t >= a) & (t <= b)
+        if C <= 0:
+            out[sel] = eps0
+            continue
+        t_eq = tau * (np.expm1(eps0 / C) if n == 0 else (1 + n * eps0 / C) ** (1 / n) - 1)
+        s = (np.minimum(t, b) - a + t_eq) / tau
+        law = (lambda x: C * np.log1p(x)) if n == 0 else (lambda x: C / n * ((1 + x) ** n - 1))
+        out[sel] = law(s[sel])
+        if np.isfinite(b):
+            eps0 = float(law((b - a + t_eq) / tau))
+    return out
+
+
+def kelvin_closed_form(t, T_of, breaks, J, tau):
+    """One Kelvin cell, eps' = (J T - eps)/tau, under a load constant between ``breaks``."""
+    t = np.asarray(t, float)
+    out = np.zeros_like(t)
+    eps0, edges = 0.0, [t[0]] + list(breaks) + [np.inf]
+    for a, b in zip(edges[:-1], edges[1:]):
+        target = J * T_of(a)
+        sel = (t >= a) & (t <= b)
+        out[sel] = target + (eps0 - target) * np.exp(-(t[sel] - a) / tau)
+        if np.isfinite(b):
+            eps0 = target + (eps0 - target) * math.exp(-(b - a) / tau)
+    return out
+
+
+# a constant load; a step up (strain hardening continues from the strain reached); an unloading
+# (the primary strain stays, the Kelvin cell beside it recovers)
+SCENARIOS = {
+    "constant": ((), lambda t: 80.0),
+    "step_up_and_unload": ((3600.0, 10800.0), lambda t: 40.0 if t < 3600.0 else (100.0 if t < 10800.0 else 0.0)),
+}
+
+
+@pytest.mark.parametrize("n", [0.0, 0.3])
+@pytest.mark.parametrize("scenario", list(SCENARIOS))
+def test_primary_creep_follows_its_closed_form_in_the_fmu_and_the_engine(scenario, n):
+    breaks, T_of = SCENARIOS[scenario]
+    kelvin = dict(creep_J1=1e-6, creep_tau1=1800.0) if breaks else {}
+    values = PRIMARY | dict(primary_n=n, load=T_of(0.0)) | kelvin
+    grid = H.grid(6 * 3600.0, 60.0)
+    inst = H.cs(values)
+    r = H.run_cs(inst, grid, ["strain", "slip_strain", "creep_strain_1"], inputs=lambda t: {"load": T_of(t)})
+    inst.free()
+    loads = np.array([T_of(t) for t in grid])
+    exp = idn.Experiment(np.asarray(grid, float), settings={k: float(v) for k, v in values.items() if k != "load"},
+                         input_kind=idn.INPUT_LOAD, input=loads, input_der=np.zeros((len(grid), 3)), output="strain")
+    engine = idn.simulate(exp)
+    primary = primary_closed_form(grid, T_of, breaks, PRIMARY["primary_J"], PRIMARY["primary_tau"], n)
+    cell = kelvin_closed_form(grid, T_of, breaks, 1e-6, 1800.0) if breaks else 0.0
+    # the load at each sample is the one applied over the step that ends there (inputs held)
+    applied = np.array([T_of(grid[max(k - 1, 0)]) for k in range(len(grid))])
+    total = applied / EA_CREEP + primary + cell
+    err_primary = float(np.max(np.abs(r["slip_strain"] - primary)) / primary.max())
+    err_fmu = float(np.max(np.abs(r["strain"] - total)) / total.max())
+    err_engine = float(np.max(np.abs(engine - total)) / total.max())
+    print(f"FIGURE primary creep n = {n}, {scenario}, 6 h: max |eps_p - closed form| / max {err_primary:.2g}, total "
+          f"strain FMU {err_fmu:.2g}, engine {err_engine:.2g} (relative to the largest)")
+    assert err_primary < 1e-7 and err_fmu < 1e-7 and err_engine < 1e-7     # measured below 6e-9
+    if breaks:
+        # unloaded: the primary strain holds its value, the Kelvin cell recovers towards zero
+        after = grid > breaks[-1] + 60.0
+        assert np.ptp(r["slip_strain"][after]) <= 1e-9 * primary.max()
+        assert r["creep_strain_1"][-1] < 0.2 * r["creep_strain_1"][np.searchsorted(grid, breaks[-1])]
+
+
+@pytest.mark.parametrize("name, value, text", [("primary_n", 1.5, "primary_n = 1.5"),
+                                               ("primary_tau", 0.0, "primary_tau = 0 s"),
+                                               ("creep_law", 3, "creep_law = 3")])
+def test_primary_creep_refuses_values_out_of_range_with_their_value(name, value, text):
+    exp = idn.Experiment(np.array([0.0, 1.0]), settings={**{k: float(v) for k, v in PRIMARY.items()}, name: value},
+                         input_kind=idn.INPUT_LOAD, input=np.array([10.0, 10.0]), output="strain")
+    with pytest.raises(RuntimeError, match=text):
+        idn.simulate(exp)
+
+
+def test_fit_primary_creep_model_of_a_creep_test_from_the_data(write_trace):
+    """A creep test drawn by the engine with primary creep (n = 0.2) and one Kelvin cell: 4 h at
+    80 N, 2 h unloaded, 2 h at 50 N, sampled every minute, noise 2e-5 m. The start (a grid of onset
+    times and exponents, compliances by non-negative least squares, the elastic compliance
+    corrected beside them) lets the fit reach the noise and recover the law; the default law
+    (Kelvin cells and slip, its time constants held) stays far from it on such a record."""
+    from tether.fit import fit_traces
+    from tether.traces import read_trace
+    t = np.arange(0.0, 8 * 3600.0 + 1.0, 60.0)
+    load = np.where(t < 4 * 3600.0, 80.0, np.where(t < 6 * 3600.0, 0.0, 50.0))
+    truth = dict(primary_J=2e-6, primary_tau=30.0, primary_n=0.2)
+    settings = PRIMARY | truth | dict(creep_J1=1e-6, creep_tau1=1800.0)
+    # the input as the fit drives it (a cubic spline's derivatives), so the record is the model's
+    u = idn.simulate(idn.Experiment(t, settings={k: float(v) for k, v in settings.items()}, input_kind=idn.INPUT_LOAD,
+                                    input=load, output="elongation"))
+    noise = 2e-5
+    u = u + np.random.default_rng(1).normal(0.0, noise, t.size)
+    trace = read_trace(write_trace("primary", write_trace.meta("creep"), {"time": t, "load": load, "elongation": u}))
+    fitted = fit_traces([trace], "linear+primary_creep")
+    default = fit_traces([trace], "linear+creep")
+    v = fitted.values
+    print(f"FIGURE primary creep fit (creep test, noise {noise} m): RMS {fitted.rms / noise:.2f} x noise, primary_J "
+          f"{v['primary_J']:.4g} 1/N, primary_tau {v['primary_tau']:.4g} s, primary_n {v['primary_n']:.3f} (truth "
+          f"2e-6, 30, 0.2); the Kelvin-and-slip law: {default.rms / noise:.1f} x noise")
+    assert fitted.rms < 1.1 * noise
+    assert abs(v["primary_n"] - 0.2) < 0.03 and abs(v["primary_J"] / 2e-6 - 1) < 0.1
+    assert abs(v["primary_tau"] / 30.0 - 1) < 0.25
+    assert default.rms > 10 * noise
+
+
+def test_model_strings_name_primary_creep():
+    from tether.models import parse_model
+    spec = parse_model("linear+primary_creep")
+    assert spec.creep and spec.creep_law == "primary" and spec.effects == ["creep"]
+    assert spec.switches["creep_law"] == 2 and "creep_law" not in parse_model("linear+creep").switches
+    assert spec.parameters[-3:] == ["primary_J", "primary_tau", "primary_n"]
+    assert "slip_rate" not in spec.parameters
+    assert spec.canonical == "linear+primary_creep" and parse_model("cubic+primary_creep").canonical == "cubic+primary_creep"

@@ -16,8 +16,9 @@ A model is a preset, optionally followed by effects or laws joined with ``+``::
 Terms after the preset are effect names of the trace format (``nonlinear_stiffness`` = cubic,
 ``hysteresis`` = boucwen, ``nonlinear_damping`` = displacement-dependent damping, ``creep``,
 ``slack``) or specific laws (``cubic``, ``exponential``: T = exp_F (exp(eps/exp_eps) - 1), ``boucwen``,
-``kawabata``, ``iwan``: inter-fibre friction, a bank of Jenkins elements beside the elastic law). A string that starts with an
-effect or a law builds on ``linear``. Names are case-insensitive. Adding something the model
+``kawabata``, ``iwan``: inter-fibre friction, a bank of Jenkins elements beside the elastic law;
+``primary_creep``: creep with primary creep, a power or the logarithm of time, in the slip's place).
+A string that starts with an effect or a law builds on ``linear``. Names are case-insensitive. Adding something the model
 already has, or two hysteresis laws, or the Kawabata law (which replaces the elastic law) together
 with the cubic or exponential law, is an error.
 
@@ -60,14 +61,15 @@ RIG = {"element": 1, "payload": 2, "load": 3}
 STIFFNESS = {"linear": 1, "cubic": 2, "exponential": 3}
 DAMPING = {"viscous": 1, "displacement": 2}
 HYSTERESIS = {"none": 1, "kawabata": 2, "boucwen": 3, "iwan": 4}
+CREEP_LAW = {"kelvin": 1, "primary": 2}
 
 #: trace-format effect names, in report order
 EFFECTS = ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "creep", "slack")
 #: law names that may be added with '+'
-LAWS = ("cubic", "exponential", "boucwen", "kawabata", "iwan")
+LAWS = ("cubic", "exponential", "boucwen", "kawabata", "iwan", "primary_creep")
 
 #: the structural switches: set by the model string, never by a parameter file
-SWITCHES = ("rig", "stiffness", "damping", "hysteresis", "creep", "slack")
+SWITCHES = ("rig", "stiffness", "damping", "hysteresis", "creep", "slack", "creep_law")
 #: names a trace sets from its metadata (they win over a parameter file)
 TRACE_PARAMETERS = ("L0", "m", "g", "x0", "v0", "line_density")
 
@@ -99,9 +101,12 @@ ELASTIC_PARAMETERS = _PARAMS_LINEAR + _PARAMS_CUBIC + _PARAMS_EXPONENTIAL
 #: term's reference strain and exponent nor the exponential's strain scale
 ELASTIC_FORCES = ("EA", "a1", "a2", "a3", "pow_F", "exp_F")
 HYSTERESIS_PARAMETERS = {"kawabata": _PARAMS_KAWABATA, "boucwen": _PARAMS_BOUCWEN, "iwan": _PARAMS_IWAN}
-_PARAMS_CREEP = ("creep_J1", "creep_tau1", "creep_J2", "creep_tau2", "creep_J3", "creep_tau3",
-                 "slip_capacity0", "slip_rate", "slip_knee", "slip_load_half", "slip_load_exponent",
-                 "slip_regen_tau", "slip_limit")
+_PARAMS_KELVIN = ("creep_J1", "creep_tau1", "creep_J2", "creep_tau2", "creep_J3", "creep_tau3")
+_PARAMS_SLIP = ("slip_capacity0", "slip_rate", "slip_knee", "slip_load_half", "slip_load_exponent",
+                "slip_regen_tau", "slip_limit")
+_PARAMS_PRIMARY = ("primary_J", "primary_tau", "primary_n")
+#: each creep law's parameters: the Kelvin cells, and the slip or the primary creep beside them
+CREEP_PARAMETERS = {"kelvin": _PARAMS_KELVIN + _PARAMS_SLIP, "primary": _PARAMS_KELVIN + _PARAMS_PRIMARY}
 
 
 class ModelError(ValueError):
@@ -121,14 +126,17 @@ class ModelSpec:
     hysteresis: str = "none"       # none | kawabata | boucwen | iwan
     creep: bool = False
     slack: bool = False
+    creep_law: str = "kelvin"      # kelvin (Kelvin cells + slip) | primary (Kelvin cells + primary creep)
     rig: str = "payload"           # element | payload | load (follows the experiment)
 
     # -- derived views ----------------------------------------------------------------------
     @property
     def switches(self) -> dict[str, int | bool]:
-        """FMU values of the structural switches: {'rig': 2, 'stiffness': 1, ..., 'slack': False}."""
+        """FMU values of the structural switches: {'rig': 2, 'stiffness': 1, ..., 'slack': False}, and
+        the creep law's (creep_law) where it is not the FMU's default, the Kelvin cells and slip."""
         return {"rig": RIG[self.rig], "stiffness": STIFFNESS[self.stiffness], "damping": DAMPING[self.damping],
-                "hysteresis": HYSTERESIS[self.hysteresis], "creep": bool(self.creep), "slack": bool(self.slack)}
+                "hysteresis": HYSTERESIS[self.hysteresis], "creep": bool(self.creep), "slack": bool(self.slack),
+                **({"creep_law": CREEP_LAW[self.creep_law]} if self.creep_law != "kelvin" else {})}
 
     @property
     def effects(self) -> list[str]:
@@ -160,7 +168,7 @@ class ModelSpec:
         if self.hysteresis == "iwan":
             names += _PARAMS_IWAN
         if self.creep:
-            names += _PARAMS_CREEP
+            names += CREEP_PARAMETERS[self.creep_law]
         return names
 
     @property
@@ -182,7 +190,7 @@ class ModelSpec:
         if self.damping != p.damping:
             terms.append("nonlinear_damping")
         if self.creep and not p.creep:
-            terms.append("creep")
+            terms.append("primary_creep" if self.creep_law == "primary" else "creep")
         if self.slack and not p.slack:
             terms.append("slack")
         return "+".join(terms)
@@ -224,6 +232,7 @@ _TERMS: dict[str, tuple[str, Any]] = {
     "iwan": ("hysteresis", "iwan"),
     "nonlinear_damping": ("damping", "displacement"),
     "creep": ("creep", True),
+    "primary_creep": ("creep", True),
     "slack": ("slack", True),
 }
 
@@ -263,6 +272,8 @@ def parse_model(text: str, experiment: str | None = None) -> ModelSpec:
             raise ModelError(f"model '{text}': '{t}' conflicts with '{origin[fld]}' (both set the {fld} law; "
                              "a model has one)")
         spec = replace(spec, **{fld: value})
+        if t == "primary_creep":
+            spec = replace(spec, creep_law="primary")
         origin[fld] = t
     if spec.hysteresis == "kawabata" and spec.stiffness != "linear":
         a = origin.get("hysteresis", "kawabata")
