@@ -6,7 +6,10 @@ Two records, each with one effect whose law is beyond the search's own:
                 T = exp_F (exp(eps/exp_eps) - 1), hidden effect nonlinear_stiffness;
   primary       a creep test (4 h at 80 N, 2 h unloaded, 2 h at 50 N, a sample a minute) of a
                 linear tether with primary creep, eps_p = (J T / n)((1 + t/tau)^n - 1), n = 0.2,
-                and one Kelvin cell, hidden effect creep.
+                and one Kelvin cell, hidden effect creep;
+and two of the search's own laws on the same loads (cubic, kelvin: the FMU's default cubic and
+Kelvin cells with slip), whose times with and without the wider laws are their cost on records
+that do not need them.
 Each is run through tether.discover twice: with the wider laws (rival.wider_law, and the exponential
 law as a candidate of nonlinear stiffness in a load test) and without them (the search as it was),
 one after the other on one thread. Printed per run:
@@ -63,8 +66,34 @@ def primary_record(folder: Path, noise: float) -> Path:
     return _write(folder, "primary", "creep", {"time": t, "load": load, "elongation": u})
 
 
+def cubic_record(folder: Path, noise: float) -> Path:
+    """The search's own law (the FMU's default cubic), on the exponential record's load cycles."""
+    from tether import identify_native as idn
+    t = np.linspace(0.0, 400.0, 1601)
+    load = 60.0 * np.sin(np.pi * t / 200.0) ** 2
+    settings = dict(rig=3, stiffness=2, damping=1, hysteresis=1, creep=0, slack=0, L0=L0)
+    u = idn.simulate(idn.Experiment(t, settings=settings, input_kind=idn.INPUT_LOAD, input=load, output="elongation"))
+    u = u + np.random.default_rng(13).normal(0.0, noise, t.size)
+    return _write(folder, "cubic", "load_unload", {"time": t, "load": load, "elongation": u})
+
+
+def kelvin_record(folder: Path, noise: float) -> Path:
+    """The search's own creep law (the FMU's default Kelvin cells and slip), on the primary record's loads."""
+    from tether import identify_native as idn
+    t = np.arange(0.0, 8 * 3600.0 + 1.0, 60.0)
+    load = np.where(t < 4 * 3600.0, 80.0, np.where(t < 6 * 3600.0, 0.0, 50.0))
+    settings = dict(rig=3, stiffness=1, EA=3000.0, damping=1, hysteresis=1, creep=1, slack=0, L0=L0)
+    u = idn.simulate(idn.Experiment(t, settings=settings, input_kind=idn.INPUT_LOAD, input=load, output="elongation"))
+    u = u + np.random.default_rng(14).normal(0.0, noise, t.size)
+    return _write(folder, "kelvin", "creep", {"time": t, "load": load, "elongation": u})
+
+
+#: name -> (draw, the hidden effect, noise [m]); the last two need no wider law: their times with
+#: and without the wider laws are the cost of the wider laws on records that do not need them
 RECORDS = {"exponential": (exponential_record, "nonlinear_stiffness", 2e-4),
-           "primary": (primary_record, "creep", 2e-5)}
+           "primary": (primary_record, "creep", 2e-5),
+           "cubic": (cubic_record, "nonlinear_stiffness", 2e-4),
+           "kelvin": (kelvin_record, "creep", 2e-5)}
 
 
 def run(stem: Path, wider: bool) -> dict:

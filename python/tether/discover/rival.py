@@ -289,7 +289,8 @@ def _wider_law_starts(trace: Trace, cur: ModelFit, new, effect: str, law: str) -
     """Starts of the wider law ``new`` of ``effect`` in place of ``law``: the current model's other
     terms with the new law's terms from the data (tether.fit's estimate, the other terms fixed at the
     current fit's) and, for the exponential law, matched to the cubic's stiffness and its slope at
-    the record's typical strain; then tether.fit's estimate of the whole model."""
+    the record's typical strain. (tether.fit's estimate of the whole model is the first start again
+    but for the other terms, which the current fit has better.)"""
     from ..fit import initial_estimate
     from ..models import CREEP_PARAMETERS, STIFFNESS_PARAMETERS
     own = STIFFNESS_PARAMETERS if effect == "nonlinear_stiffness" else CREEP_PARAMETERS
@@ -307,7 +308,7 @@ def _wider_law_starts(trace: Trace, cur: ModelFit, new, effect: str, law: str) -
         matched = _exponential_from_cubic(cur.params, max(typical, 0.0))
         if matched:
             starts.append({**mine, **matched})
-    return starts + [None]
+    return starts
 
 
 def wider_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
