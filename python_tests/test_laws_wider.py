@@ -308,3 +308,25 @@ def test_model_strings_name_primary_creep():
     assert spec.parameters[-3:] == ["primary_J", "primary_tau", "primary_n"]
     assert "slip_rate" not in spec.parameters
     assert spec.canonical == "linear+primary_creep" and parse_model("cubic+primary_creep").canonical == "cubic+primary_creep"
+
+
+def test_discovery_offers_the_exponential_law_in_load_tests_only_and_frees_each_creep_laws_terms(write_trace):
+    """The registry (discover/laws.py): nonlinear stiffness in a load test has the exponential law
+    beside the cubic, a payload record the cubic alone; a primary creep law frees its own terms,
+    not the slip's; WIDER_LAWS names the law each wider law stands in for."""
+    from tether.discover.laws import WIDER_LAWS, _law_of, _models_for, _with_law, free_parameters
+    from tether.models import parse_model
+    from tether.traces import read_trace
+    t = np.linspace(0.0, 10.0, 11)
+    load = read_trace(write_trace("ld", write_trace.meta("load_unload"),
+                                  {"time": t, "load": 5.0 * t, "elongation": 1e-3 * t}))
+    fv = read_trace(write_trace("fv", write_trace.meta("free_vibration"), {"time": t, "displacement": np.cos(t)}))
+    linear = parse_model("linear")
+    assert [m.stiffness for m in _models_for(linear, "nonlinear_stiffness", load)] == ["cubic", "exponential"]
+    assert [m.stiffness for m in _models_for(linear, "nonlinear_stiffness", fv)] == ["cubic"]
+    assert _models_for(parse_model("exponential"), "nonlinear_stiffness", load) == []
+    primary = _with_law(parse_model("linear+creep"), "creep", "primary")
+    assert _law_of(primary, "creep") == "primary" and primary == parse_model("linear+primary_creep")
+    names = free_parameters(primary, "creep")
+    assert {"primary_J", "primary_tau", "primary_n"} <= set(names) and "slip_rate" not in names
+    assert WIDER_LAWS == {"nonlinear_stiffness": ("cubic", "exponential"), "creep": ("kelvin", "primary")}
