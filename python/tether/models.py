@@ -61,7 +61,7 @@ RIG = {"element": 1, "payload": 2, "load": 3}
 STIFFNESS = {"linear": 1, "cubic": 2, "exponential": 3}
 DAMPING = {"viscous": 1, "displacement": 2}
 HYSTERESIS = {"none": 1, "kawabata": 2, "boucwen": 3, "iwan": 4}
-CREEP_LAW = {"kelvin": 1, "primary": 2}
+CREEP_LAW = {"kelvin_slip": 1, "primary": 2}
 
 #: trace-format effect names, in report order
 EFFECTS = ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "creep", "slack")
@@ -106,7 +106,7 @@ _PARAMS_SLIP = ("slip_capacity0", "slip_rate", "slip_knee", "slip_load_half", "s
                 "slip_regen_tau", "slip_limit")
 _PARAMS_PRIMARY = ("primary_J", "primary_tau", "primary_n")
 #: each creep law's parameters: the Kelvin cells, and the slip or the primary creep beside them
-CREEP_PARAMETERS = {"kelvin": _PARAMS_KELVIN + _PARAMS_SLIP, "primary": _PARAMS_KELVIN + _PARAMS_PRIMARY}
+CREEP_PARAMETERS = {"kelvin_slip": _PARAMS_KELVIN + _PARAMS_SLIP, "primary": _PARAMS_KELVIN + _PARAMS_PRIMARY}
 
 
 class ModelError(ValueError):
@@ -126,7 +126,7 @@ class ModelSpec:
     hysteresis: str = "none"       # none | kawabata | boucwen | iwan
     creep: bool = False
     slack: bool = False
-    creep_law: str = "kelvin"      # kelvin (Kelvin cells + slip) | primary (Kelvin cells + primary creep)
+    creep_law: str = "kelvin_slip"  # kelvin_slip (Kelvin cells + slip) | primary (Kelvin cells + primary creep)
     rig: str = "payload"           # element | payload | load (follows the experiment)
 
     # -- derived views ----------------------------------------------------------------------
@@ -136,7 +136,7 @@ class ModelSpec:
         the creep law's (creep_law) where it is not the FMU's default, the Kelvin cells and slip."""
         return {"rig": RIG[self.rig], "stiffness": STIFFNESS[self.stiffness], "damping": DAMPING[self.damping],
                 "hysteresis": HYSTERESIS[self.hysteresis], "creep": bool(self.creep), "slack": bool(self.slack),
-                **({"creep_law": CREEP_LAW[self.creep_law]} if self.creep_law != "kelvin" else {})}
+                **({"creep_law": CREEP_LAW[self.creep_law]} if self.creep_law != "kelvin_slip" else {})}
 
     @property
     def effects(self) -> list[str]:

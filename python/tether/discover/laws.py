@@ -117,7 +117,7 @@ def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
     if spec.creep:
         # a load-unload test (minutes) sees the fast cells and the slip rate; a creep test (hours
         # of holds) the time constants and the slip's shape as well
-        shape = CREEP_SHAPE if spec.creep_law == "kelvin" else CREEP_SHAPE[:3]
+        shape = CREEP_SHAPE if spec.creep_law == "kelvin_slip" else CREEP_SHAPE[:3]
         names += list(CREEP_FREE_BY_LAW[spec.creep_law] + (shape if experiment == "creep" else ()))
     return names
 
@@ -248,4 +248,4 @@ RIVAL_LAWS = {"hysteresis": ("boucwen", "iwan")}
 #: stiffness for the cubic, primary creep (a power or the logarithm of time) for the Kelvin cells
 #: and slip. Fitted in the named law's place only where the final model still misses the record
 #: (rival.wider_law), so a record the search's laws explain takes no longer.
-WIDER_LAWS = {"nonlinear_stiffness": ("cubic", "exponential"), "creep": ("kelvin", "primary")}
+WIDER_LAWS = {"nonlinear_stiffness": ("cubic", "exponential"), "creep": ("kelvin_slip", "primary")}
