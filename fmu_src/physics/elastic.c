@@ -7,7 +7,13 @@
  * pow_F at the reference strain pow_eps): the form of Kawabata's loading curve, a stiffness that
  * grows from zero as a fractional power of the strain, which no cubic follows near eps = 0 (a
  * load test of a power-law tether from 0 to 80 N: the best cubic misses its elongation by 3.9 x
- * noise). pow_F = 0, the default, leaves the cubic alone. */
+ * noise). pow_F = 0, the default, leaves the cubic alone.
+ *
+ * The exponential law F(eps) = exp_F (exp(eps / exp_eps) - 1) (stiffness = exponential) is a law of
+ * its own, not a term beside the cubic: its stiffness (F + exp_F) / exp_eps rises with the tension
+ * without bound, where the cubic's turns over, and the two added together would be a law with five
+ * coefficients that no record separates. It rises everywhere, and its inverse is closed:
+ * eps = exp_eps ln(1 + T / exp_F), for T > -exp_F. */
 #include <float.h>
 #include <math.h>
 
@@ -24,9 +30,19 @@ static int has_power_term(const tether_params *p)
     return p->stiffness == STIFFNESS_CUBIC && p->pow_F > 0.0;
 }
 
+/* exp(eps / exp_eps), its argument capped where the tension would overflow (a strain of hundreds
+ * of exp_eps is far beyond any tether; the runaway check stops a simulation long before) */
+#define EXPONENTIAL_MAX_ARGUMENT 700.0
+static double exponential_argument(const tether_params *p, double eps)
+{
+    const double y = eps / p->exp_eps;
+    return y < EXPONENTIAL_MAX_ARGUMENT ? y : EXPONENTIAL_MAX_ARGUMENT;
+}
+
 double elastic_tension(const tether_params *p, double eps)
 {
     if (p->stiffness == STIFFNESS_LINEAR) return p->EA * eps;
+    if (p->stiffness == STIFFNESS_EXPONENTIAL) return p->exp_F * expm1(exponential_argument(p, eps));
     double F = eps * (p->a1 + eps * (p->a2 + eps * p->a3));
     if (has_power_term(p)) {
         const double y = eps / p->pow_eps, s = y * y + POWER_SMOOTHING * POWER_SMOOTHING;
@@ -38,6 +54,7 @@ double elastic_tension(const tether_params *p, double eps)
 double elastic_stiffness(const tether_params *p, double eps)
 {
     if (p->stiffness == STIFFNESS_LINEAR) return p->EA;
+    if (p->stiffness == STIFFNESS_EXPONENTIAL) return p->exp_F / p->exp_eps * exp(exponential_argument(p, eps));
     double k = p->a1 + eps * (2.0 * p->a2 + 3.0 * eps * p->a3);
     if (has_power_term(p)) {
         const double y = eps / p->pow_eps, s = y * y + POWER_SMOOTHING * POWER_SMOOTHING;
@@ -75,7 +92,7 @@ static void stiffness_roots(const tether_params *p, double *below, double *above
 {
     *below = -HUGE_VAL;
     *above = HUGE_VAL;
-    if (p->stiffness == STIFFNESS_LINEAR) return;
+    if (p->stiffness == STIFFNESS_LINEAR || p->stiffness == STIFFNESS_EXPONENTIAL) return;
     const double a = 3.0 * p->a3, b = 2.0 * p->a2, c = p->a1;
     if (c <= 0.0) { *below = *above = 0.0; return; }
     double r[2];
@@ -123,6 +140,12 @@ int elastic_strain_below(const tether_params *p, double T, double rising_limit, 
         if (p->EA <= 0.0) return -1;
         *eps = T / p->EA;
         return 0;
+    }
+    if (p->stiffness == STIFFNESS_EXPONENTIAL) {
+        /* compression carries at most exp_F (the law tends to -exp_F) */
+        if (!(p->exp_F > 0.0) || !(T > -p->exp_F)) return -1;
+        *eps = p->exp_eps * log1p(T / p->exp_F);
+        return isfinite(*eps) ? 0 : -1;
     }
     if (T < 0.0) {
         /* compression (slack off): Newton from the linear guess, the cubic's slope at small

@@ -12,7 +12,8 @@
 /* ---- elastic law (paper: nonlinear stiffness) -------------------------------------------- */
 /* Tension of the elastic law at strain eps, not clamped: linear EA eps, or the cubic
  * a1 eps + a2 eps^2 + a3 eps^3 (the same law for every length) plus the power term
- * pow_F sgn(eps) |eps / pow_eps|^pow_n (0 unless pow_F > 0). */
+ * pow_F sgn(eps) |eps / pow_eps|^pow_n (0 unless pow_F > 0), or the exponential
+ * exp_F (exp(eps / exp_eps) - 1) (a stiffness exp_F / exp_eps at eps = 0 that grows with strain). */
 double elastic_tension(const tether_params *p, double eps);
 /* dF/deps of the elastic law. */
 double elastic_stiffness(const tether_params *p, double eps);
@@ -111,9 +112,17 @@ typedef struct {
     double slip;                       /* unrecoverable (slip) strain */
     double capacity;                   /* clearance strain available to slip */
 } creep_state;
-/* Rates of the creep strains under tension T >= 0. */
+/* Rates of the creep strains under tension T >= 0: the Kelvin cells, and the slip with its
+ * clearance (creep_law = kelvin_slip) or the primary creep (creep_law = primary: its strain in
+ * `slip`, `capacity` unused, rate 0). */
 void creep_rates(const tether_params *p, double T, const creep_state *s, creep_state *rate);
 /* Load activation of the slip, w(T) = T^k / (T^k + T_half^k). */
 double creep_slip_activation(const tether_params *p, double T);
+/* Rate of the primary creep strain eps_p >= 0 under tension T, strain hardening:
+ *   eps_p' = (C / tau) (1 + n eps_p / C)^((n - 1)/n),  C = primary_J T   (n > 0)
+ *   eps_p' = (C / tau) exp(-eps_p / C)                                  (n = 0)
+ * which under a constant T integrates to eps_p = (C / n)((1 + t/tau)^n - 1) (C ln(1 + t/tau) at
+ * n = 0): Findley's power of time beyond tau, regular at t = 0. 0 for T <= 0 (no recovery). */
+double creep_primary_rate(const tether_params *p, double T, double eps_p);
 
 #endif

@@ -6,23 +6,26 @@
 #define KT_PHYSICS_PARAMS_H
 
 typedef enum { RIG_ELEMENT = 1, RIG_PAYLOAD = 2, RIG_LOAD = 3 } tether_rig;
-typedef enum { STIFFNESS_LINEAR = 1, STIFFNESS_CUBIC = 2 } stiffness_law;
+typedef enum { STIFFNESS_LINEAR = 1, STIFFNESS_CUBIC = 2, STIFFNESS_EXPONENTIAL = 3 } stiffness_law;
 typedef enum { DAMPING_VISCOUS = 1, DAMPING_DISPLACEMENT = 2 } damping_law;
 typedef enum { HYSTERESIS_NONE = 1, HYSTERESIS_KAWABATA = 2, HYSTERESIS_BOUCWEN = 3, HYSTERESIS_IWAN = 4 } hysteresis_law;
+typedef enum { CREEP_KELVIN_SLIP = 1, CREEP_PRIMARY = 2 } creep_law_choice;
 typedef enum { INTEGRATOR_AUTO = 1, INTEGRATOR_BDF = 2, INTEGRATOR_ADAMS = 3 } integrator_choice;
 
 typedef struct {
     /* structural switches */
-    int rig, stiffness, damping, hysteresis, creep, slack, integrator;
+    int rig, stiffness, damping, hysteresis, creep, slack, integrator, creep_law;
     double rtol;
     /* payload */
     double m, g, x0, v0;
     /* payload rig: the tether line's own mass per length [kg/m], its share of the weight and of
      * the inertia (tether.h: payload_carried_mass, payload_effective_mass) */
     double line_density;
-    /* elastic law: linear EA, or the cubic a1..a3 plus a power term pow_F |eps/pow_eps|^pow_n */
+    /* elastic law: linear EA, or the cubic a1..a3 plus a power term pow_F |eps/pow_eps|^pow_n, or
+     * the exponential exp_F (exp(eps/exp_eps) - 1) */
     double EA, a1, a2, a3;
     double pow_F, pow_eps, pow_n;
+    double exp_F, exp_eps;
     /* damping: c(x) = c0 + c1 |x| + c2 x^2 + a table over |x| (knots c_table_dx apart),
      * plus c_drag |v| (velocity-quadratic drag) */
     double c0, c1, c2;
@@ -41,6 +44,9 @@ typedef struct {
     double creep_J1, creep_tau1, creep_J2, creep_tau2, creep_J3, creep_tau3;
     double slip_capacity0, slip_rate, slip_knee, slip_load_half, slip_load_exponent;
     double slip_regen_tau, slip_limit;
+    /* primary creep (creep_law = primary, in the slip's place): eps_p = (J T / n)((1 + t/tau)^n - 1)
+     * under a constant T (J T ln(1 + t/tau) at n = 0), as a strain-hardening state equation */
+    double primary_J, primary_tau, primary_n;
 } tether_params;
 
 /* Inputs. force and load may carry time derivatives up to third order (input interpolation): from

@@ -144,6 +144,7 @@ static double stiffness_scale(const tether_model *M)
 {
     const tether_params *p = &M->p;
     if (p->hysteresis == HYSTERESIS_KAWABATA) return p->kaw_F_ref / p->kaw_eps_ref;
+    if (p->stiffness == STIFFNESS_EXPONENTIAL) return p->exp_F / p->exp_eps;
     return p->stiffness == STIFFNESS_LINEAR ? p->EA : p->a1;
 }
 
@@ -235,9 +236,10 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     const tether_params *p = &M->p;
 #define FAIL(...) do { snprintf(msg, len, __VA_ARGS__); return -1; } while (0)
     if (p->rig < RIG_ELEMENT || p->rig > RIG_LOAD) FAIL("rig = %d: expected 1 (element), 2 (payload) or 3 (load)", p->rig);
-    if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_CUBIC) FAIL("stiffness = %d: expected 1 (linear) or 2 (cubic)", p->stiffness);
+    if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_EXPONENTIAL) FAIL("stiffness = %d: expected 1 (linear), 2 (cubic) or 3 (exponential)", p->stiffness);
     if (p->damping < DAMPING_VISCOUS || p->damping > DAMPING_DISPLACEMENT) FAIL("damping = %d: expected 1 (viscous) or 2 (displacement)", p->damping);
     if (p->hysteresis < HYSTERESIS_NONE || p->hysteresis > HYSTERESIS_IWAN) FAIL("hysteresis = %d: expected 1 (none), 2 (kawabata), 3 (boucwen) or 4 (iwan)", p->hysteresis);
+    if (p->creep_law < CREEP_KELVIN_SLIP || p->creep_law > CREEP_PRIMARY) FAIL("creep_law = %d: expected 1 (kelvin_slip) or 2 (primary)", p->creep_law);
     if (p->integrator < INTEGRATOR_AUTO || p->integrator > INTEGRATOR_ADAMS) FAIL("integrator = %d: expected 1 (auto), 2 (bdf) or 3 (adams)", p->integrator);
     if (!(p->rtol >= 1e-14 && p->rtol <= 1e-2)) FAIL("rtol = %g: expected a relative tolerance in [1e-14, 1e-2]", p->rtol);
     if (!(M->in.L0 > 0.0) || !isfinite(M->in.L0)) FAIL("L0 = %g m: the natural length must be positive", M->in.L0);
@@ -247,6 +249,10 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (!(p->g >= 0.0)) FAIL("g = %g m/s2: expected g >= 0", p->g);
     if (p->stiffness == STIFFNESS_LINEAR && p->hysteresis != HYSTERESIS_KAWABATA && !(p->EA > 0.0)) FAIL("EA = %g N: the linear law needs EA > 0", p->EA);
     if (p->stiffness == STIFFNESS_CUBIC && p->hysteresis != HYSTERESIS_KAWABATA && !(p->a1 > 0.0)) FAIL("a1 = %g N: the cubic law needs a1 > 0", p->a1);
+    if (p->stiffness == STIFFNESS_EXPONENTIAL && p->hysteresis != HYSTERESIS_KAWABATA) {
+        if (!(p->exp_F > 0.0) || !isfinite(p->exp_F)) FAIL("exp_F = %g N: the exponential law needs exp_F > 0", p->exp_F);
+        if (!(p->exp_eps > 0.0) || !isfinite(p->exp_eps)) FAIL("exp_eps = %g: the exponential law needs a positive strain scale", p->exp_eps);
+    }
     if (!(p->pow_F >= 0.0)) FAIL("pow_F = %g N: expected pow_F >= 0", p->pow_F);
     if (!(p->pow_eps > 0.0) || !isfinite(p->pow_eps)) FAIL("pow_eps = %g: the power term's reference strain must be positive", p->pow_eps);
     if (!(p->pow_n >= 1.0 && p->pow_n <= 4.0)) FAIL("pow_n = %g: expected an exponent in [1, 4]", p->pow_n);
@@ -282,13 +288,19 @@ int tether_check(const tether_model *M, char *msg, size_t len)
             if (!(taus[k] > 0.0)) FAIL("creep_tau%d = %g s: expected a positive retardation time", k + 1, taus[k]);
             if (!(Js[k] >= 0.0)) FAIL("creep_J%d = %g 1/N: expected a compliance >= 0", k + 1, Js[k]);
         }
-        if (!(p->slip_capacity0 >= 0.0)) FAIL("slip_capacity0 = %g: expected >= 0", p->slip_capacity0);
-        if (!(p->slip_rate >= 0.0)) FAIL("slip_rate = %g 1/s: expected >= 0", p->slip_rate);
-        if (!(p->slip_knee > 0.0)) FAIL("slip_knee = %g: expected > 0", p->slip_knee);
-        if (!(p->slip_load_half > 0.0)) FAIL("slip_load_half = %g N: expected > 0", p->slip_load_half);
-        if (!(p->slip_load_exponent >= 1.0)) FAIL("slip_load_exponent = %g: expected >= 1", p->slip_load_exponent);
-        if (!(p->slip_regen_tau > 0.0)) FAIL("slip_regen_tau = %g s: expected > 0", p->slip_regen_tau);
-        if (!(p->slip_limit > 0.0)) FAIL("slip_limit = %g: expected > 0", p->slip_limit);
+        if (p->creep_law == CREEP_PRIMARY) {
+            if (!(p->primary_J >= 0.0) || !isfinite(p->primary_J)) FAIL("primary_J = %g 1/N: expected a compliance >= 0", p->primary_J);
+            if (!(p->primary_tau > 0.0) || !isfinite(p->primary_tau)) FAIL("primary_tau = %g s: expected a positive onset time", p->primary_tau);
+            if (!(p->primary_n >= 0.0 && p->primary_n <= 1.0)) FAIL("primary_n = %g: expected an exponent in [0, 1] (0: logarithmic)", p->primary_n);
+        } else {
+            if (!(p->slip_capacity0 >= 0.0)) FAIL("slip_capacity0 = %g: expected >= 0", p->slip_capacity0);
+            if (!(p->slip_rate >= 0.0)) FAIL("slip_rate = %g 1/s: expected >= 0", p->slip_rate);
+            if (!(p->slip_knee > 0.0)) FAIL("slip_knee = %g: expected > 0", p->slip_knee);
+            if (!(p->slip_load_half > 0.0)) FAIL("slip_load_half = %g N: expected > 0", p->slip_load_half);
+            if (!(p->slip_load_exponent >= 1.0)) FAIL("slip_load_exponent = %g: expected >= 1", p->slip_load_exponent);
+            if (!(p->slip_regen_tau > 0.0)) FAIL("slip_regen_tau = %g s: expected > 0", p->slip_regen_tau);
+            if (!(p->slip_limit > 0.0)) FAIL("slip_limit = %g: expected > 0", p->slip_limit);
+        }
     }
 #undef FAIL
     return 0;
@@ -360,7 +372,7 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
         M->d.iwan.direction = eps0 >= 0.0 ? 1 : -1;
     }
     y[ST_HYSTERETIC_FORCE] = z0;
-    y[ST_CAPACITY] = p->creep ? p->slip_capacity0 : 0.0;
+    y[ST_CAPACITY] = p->creep && p->creep_law == CREEP_KELVIN_SLIP ? p->slip_capacity0 : 0.0;
     /* initial slack mode: taut only where the tether is stretched and pulls */
     M->d.taut = 1;
     if (slack_active(M)) {

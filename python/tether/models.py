@@ -15,11 +15,12 @@ A model is a preset, optionally followed by effects or laws joined with ``+``::
 
 Terms after the preset are effect names of the trace format (``nonlinear_stiffness`` = cubic,
 ``hysteresis`` = boucwen, ``nonlinear_damping`` = displacement-dependent damping, ``creep``,
-``slack``) or specific laws (``cubic``, ``boucwen``, ``kawabata``, ``iwan``: inter-fibre friction, a bank
-of Jenkins elements beside the elastic law). A string that starts with an
-effect or a law builds on ``linear``. Names are case-insensitive. Adding something the model
+``slack``) or specific laws (``cubic``, ``exponential``: T = exp_F (exp(eps/exp_eps) - 1), ``boucwen``,
+``kawabata``, ``iwan``: inter-fibre friction, a bank of Jenkins elements beside the elastic law;
+``primary_creep``: creep with primary creep, a power or the logarithm of time, in the slip's place).
+A string that starts with an effect or a law builds on ``linear``. Names are case-insensitive. Adding something the model
 already has, or two hysteresis laws, or the Kawabata law (which replaces the elastic law) together
-with the cubic law, is an error.
+with the cubic or exponential law, is an error.
 
 Every model switches slack and creep off unless they are added: the baseline of the trace format
 is a linear spring that also carries compression.
@@ -57,17 +58,18 @@ PARAMS_FORMAT = "tether-params/1"
 # ---------------------------------------------------------------------------------------------
 # values of the FMU's Integer switches (each listed in its description in modelDescription.xml)
 RIG = {"element": 1, "payload": 2, "load": 3}
-STIFFNESS = {"linear": 1, "cubic": 2}
+STIFFNESS = {"linear": 1, "cubic": 2, "exponential": 3}
 DAMPING = {"viscous": 1, "displacement": 2}
 HYSTERESIS = {"none": 1, "kawabata": 2, "boucwen": 3, "iwan": 4}
+CREEP_LAW = {"kelvin_slip": 1, "primary": 2}
 
 #: trace-format effect names, in report order
 EFFECTS = ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "creep", "slack")
 #: law names that may be added with '+'
-LAWS = ("cubic", "boucwen", "kawabata", "iwan")
+LAWS = ("cubic", "exponential", "boucwen", "kawabata", "iwan", "primary_creep")
 
 #: the structural switches: set by the model string, never by a parameter file
-SWITCHES = ("rig", "stiffness", "damping", "hysteresis", "creep", "slack")
+SWITCHES = ("rig", "stiffness", "damping", "hysteresis", "creep", "slack", "creep_law")
 #: names a trace sets from its metadata (they win over a parameter file)
 TRACE_PARAMETERS = ("L0", "m", "g", "x0", "v0", "line_density")
 
@@ -75,6 +77,9 @@ EXPERIMENT_RIG = {"free_vibration": "payload", "forced": "payload", "load_unload
 
 _PARAMS_LINEAR = ("EA",)
 _PARAMS_CUBIC = ("a1", "a2", "a3", "pow_F", "pow_eps", "pow_n")
+_PARAMS_EXPONENTIAL = ("exp_F", "exp_eps")
+#: each elastic law's parameters
+STIFFNESS_PARAMETERS = {"linear": _PARAMS_LINEAR, "cubic": _PARAMS_CUBIC, "exponential": _PARAMS_EXPONENTIAL}
 _PARAMS_VISCOUS = ("c0",)
 _PARAMS_DISPLACEMENT = ("c0", "c1", "c2", "c_table_dx", "c_table_1", "c_table_2", "c_table_3", "c_table_4",
                         "c_table_5", "c_table_6", "c_drag")
@@ -90,15 +95,18 @@ IWAN_K_FIT = IWAN_K[:IWAN_FIT_ELEMENTS]
 IWAN_EPS_FIT = IWAN_EPS[:IWAN_FIT_ELEMENTS]
 _PARAMS_IWAN = IWAN_K + IWAN_EPS
 _PARAMS_KAWABATA = ("kaw_LT", "kaw_RT", "kaw_eps_ref", "kaw_F_ref", "kaw_residual")
-#: the elastic law's terms (linear or cubic), and each hysteresis law's
-ELASTIC_PARAMETERS = _PARAMS_LINEAR + _PARAMS_CUBIC
+#: the elastic law's terms (linear, cubic or exponential), and each hysteresis law's
+ELASTIC_PARAMETERS = _PARAMS_LINEAR + _PARAMS_CUBIC + _PARAMS_EXPONENTIAL
 #: the elastic law's terms that are forces (N): a stiffer or softer law scales these, not the power
-#: term's reference strain and exponent
-ELASTIC_FORCES = ("EA", "a1", "a2", "a3", "pow_F")
+#: term's reference strain and exponent nor the exponential's strain scale
+ELASTIC_FORCES = ("EA", "a1", "a2", "a3", "pow_F", "exp_F")
 HYSTERESIS_PARAMETERS = {"kawabata": _PARAMS_KAWABATA, "boucwen": _PARAMS_BOUCWEN, "iwan": _PARAMS_IWAN}
-_PARAMS_CREEP = ("creep_J1", "creep_tau1", "creep_J2", "creep_tau2", "creep_J3", "creep_tau3",
-                 "slip_capacity0", "slip_rate", "slip_knee", "slip_load_half", "slip_load_exponent",
-                 "slip_regen_tau", "slip_limit")
+_PARAMS_KELVIN = ("creep_J1", "creep_tau1", "creep_J2", "creep_tau2", "creep_J3", "creep_tau3")
+_PARAMS_SLIP = ("slip_capacity0", "slip_rate", "slip_knee", "slip_load_half", "slip_load_exponent",
+                "slip_regen_tau", "slip_limit")
+_PARAMS_PRIMARY = ("primary_J", "primary_tau", "primary_n")
+#: each creep law's parameters: the Kelvin cells, and the slip or the primary creep beside them
+CREEP_PARAMETERS = {"kelvin_slip": _PARAMS_KELVIN + _PARAMS_SLIP, "primary": _PARAMS_KELVIN + _PARAMS_PRIMARY}
 
 
 class ModelError(ValueError):
@@ -113,25 +121,28 @@ class ParamsError(ValueError):
 class ModelSpec:
     """The structural switches of one model (values named as in the FMU switches' descriptions)."""
 
-    stiffness: str = "linear"      # linear | cubic
+    stiffness: str = "linear"      # linear | cubic | exponential
     damping: str = "viscous"       # viscous | displacement
     hysteresis: str = "none"       # none | kawabata | boucwen | iwan
     creep: bool = False
     slack: bool = False
+    creep_law: str = "kelvin_slip"  # kelvin_slip (Kelvin cells + slip) | primary (Kelvin cells + primary creep)
     rig: str = "payload"           # element | payload | load (follows the experiment)
 
     # -- derived views ----------------------------------------------------------------------
     @property
     def switches(self) -> dict[str, int | bool]:
-        """FMU values of the structural switches: {'rig': 2, 'stiffness': 1, ..., 'slack': False}."""
+        """FMU values of the structural switches: {'rig': 2, 'stiffness': 1, ..., 'slack': False}, and
+        the creep law's (creep_law) where it is not the FMU's default, the Kelvin cells and slip."""
         return {"rig": RIG[self.rig], "stiffness": STIFFNESS[self.stiffness], "damping": DAMPING[self.damping],
-                "hysteresis": HYSTERESIS[self.hysteresis], "creep": bool(self.creep), "slack": bool(self.slack)}
+                "hysteresis": HYSTERESIS[self.hysteresis], "creep": bool(self.creep), "slack": bool(self.slack),
+                **({"creep_law": CREEP_LAW[self.creep_law]} if self.creep_law != "kelvin_slip" else {})}
 
     @property
     def effects(self) -> list[str]:
         """The trace-format effects this model contains, in the order of :data:`EFFECTS`."""
         have = set()
-        if self.stiffness == "cubic" or self.hysteresis == "kawabata":
+        if self.stiffness != "linear" or self.hysteresis == "kawabata":
             have.add("nonlinear_stiffness")
         if self.hysteresis != "none":
             have.add("hysteresis")
@@ -150,14 +161,14 @@ class ModelSpec:
         if self.hysteresis == "kawabata":
             names += _PARAMS_KAWABATA
         else:
-            names += _PARAMS_CUBIC if self.stiffness == "cubic" else _PARAMS_LINEAR
+            names += STIFFNESS_PARAMETERS[self.stiffness]
         names += _PARAMS_DISPLACEMENT if self.damping == "displacement" else _PARAMS_VISCOUS
         if self.hysteresis == "boucwen":
             names += _PARAMS_BOUCWEN
         if self.hysteresis == "iwan":
             names += _PARAMS_IWAN
         if self.creep:
-            names += _PARAMS_CREEP
+            names += CREEP_PARAMETERS[self.creep_law]
         return names
 
     @property
@@ -173,13 +184,13 @@ class ModelSpec:
         p = PRESETS[base]
         terms = [base]
         if self.stiffness != p.stiffness:
-            terms.append("cubic")
+            terms.append(self.stiffness)
         if self.hysteresis != p.hysteresis:
             terms.append(self.hysteresis)
         if self.damping != p.damping:
             terms.append("nonlinear_damping")
         if self.creep and not p.creep:
-            terms.append("creep")
+            terms.append("primary_creep" if self.creep_law == "primary" else "creep")
         if self.slack and not p.slack:
             terms.append("slack")
         return "+".join(terms)
@@ -214,12 +225,14 @@ PRESETS: dict[str, ModelSpec] = {
 _TERMS: dict[str, tuple[str, Any]] = {
     "nonlinear_stiffness": ("stiffness", "cubic"),
     "cubic": ("stiffness", "cubic"),
+    "exponential": ("stiffness", "exponential"),
     "hysteresis": ("hysteresis", "boucwen"),
     "boucwen": ("hysteresis", "boucwen"),
     "kawabata": ("hysteresis", "kawabata"),
     "iwan": ("hysteresis", "iwan"),
     "nonlinear_damping": ("damping", "displacement"),
     "creep": ("creep", True),
+    "primary_creep": ("creep", True),
     "slack": ("slack", True),
 }
 
@@ -259,10 +272,12 @@ def parse_model(text: str, experiment: str | None = None) -> ModelSpec:
             raise ModelError(f"model '{text}': '{t}' conflicts with '{origin[fld]}' (both set the {fld} law; "
                              "a model has one)")
         spec = replace(spec, **{fld: value})
+        if t == "primary_creep":
+            spec = replace(spec, creep_law="primary")
         origin[fld] = t
-    if spec.hysteresis == "kawabata" and spec.stiffness == "cubic":
+    if spec.hysteresis == "kawabata" and spec.stiffness != "linear":
         a = origin.get("hysteresis", "kawabata")
-        b = origin.get("stiffness", "cubic")
+        b = origin.get("stiffness", spec.stiffness)
         raise ModelError(f"model '{text}': '{a}' conflicts with '{b}': the Kawabata branches replace the elastic "
                          "law (and already give nonlinear stiffness)")
     if experiment is not None:

@@ -1,5 +1,5 @@
-"""The rival laws of an effect (hysteresis: Bouc-Wen or the Iwan bank) and the Iwan bank's last
-stages (its idle elements restarted, a finer bank)."""
+"""The rival laws of an effect (hysteresis: Bouc-Wen or the Iwan bank), the wider laws of the
+elastic law and creep, and the Iwan bank's last stages (its idle elements restarted, a finer bank)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K
 from ..traces import Trace
 from .fitting import _heldout, ModelFit
 from .judge import CRITERIA, _heldout_judges, _law_judged, _shape_judged, bic_change
-from .laws import RIVAL_LAWS
+from .laws import _law_of, _with_law, RIVAL_LAWS, WIDER_LAWS
 from .records import Refinement
 
 
@@ -269,3 +269,78 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
                    {t: float(fm.params[t]) for t in IWAN_K + IWAN_EPS} if fm.ok else {}, finer=True)
     say(f"  a finer Iwan bank: {'kept' if ok else 'not kept'}: {verdict}")
     return (fm, held if math.isfinite(held) else cur_held, r) if ok else (cur, cur_held, r)
+
+
+def _exponential_from_cubic(params: dict, strain: float) -> dict:
+    """The exponential law with the cubic's (and power term's) tangent stiffness and its slope at
+    ``strain`` (the record's typical strain): exp_eps = k / k', exp_F = k exp_eps exp(-strain / exp_eps);
+    {} where the cubic does not stiffen there."""
+    from ..fit.elastic import cubic_tension
+    h = max(1e-6, 1e-3 * abs(strain))
+    F = [float(cubic_tension(params, strain + j * h)) for j in (-1, 0, 1)]
+    k, k2 = (F[2] - F[0]) / (2 * h), (F[2] - 2 * F[1] + F[0]) / h ** 2
+    if not (k > 0 and k2 > 0):
+        return {}
+    e = k / k2
+    return {"exp_F": k * e * math.exp(-strain / e), "exp_eps": e}
+
+
+def _wider_law_starts(trace: Trace, cur: ModelFit, new, effect: str, law: str) -> list:
+    """Starts of the wider law ``new`` of ``effect`` in place of ``law``: the current model's other
+    terms with the new law's terms from the data (tether.fit's estimate, the other terms fixed at the
+    current fit's) and, for the exponential law, matched to the cubic's stiffness and its slope at
+    the record's typical strain. (tether.fit's estimate of the whole model is the first start again
+    but for the other terms, which the current fit has better.)"""
+    from ..fit import initial_estimate
+    from ..models import CREEP_PARAMETERS, STIFFNESS_PARAMETERS
+    own = STIFFNESS_PARAMETERS if effect == "nonlinear_stiffness" else CREEP_PARAMETERS
+    mine = {k: float(v) for k, v in cur.params.items() if k in new.parameters and k not in own[law]}
+    estimate = {k: v for k, v in initial_estimate([trace], new, fixed=mine).items()
+                if not k.startswith("_") and k in own[_law_of(new, effect)]}
+    starts = [{**mine, **estimate}]
+    if effect == "nonlinear_stiffness":
+        eps = np.asarray(trace.measured, float) / float(trace.length_m)
+        typical = float(np.median(eps)) if trace.rig != "payload" else 0.0
+        if trace.rig == "payload":
+            from .. import identify_native as idn
+            from ..fit.elastic import cubic_inverse
+            typical = float(cubic_inverse(cur.params)(idn.payload_masses(trace)[0] * float(trace.gravity_m_s2)))
+        matched = _exponential_from_cubic(cur.params, max(typical, 0.0))
+        if matched:
+            starts.append({**mine, **matched})
+    return starts
+
+
+def wider_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
+              say: Callable[[str], None]):
+    """The search names effects with its own laws (the cubic, the Kelvin cells and slip); a tether
+    that is not ours may follow another law of the same effect (WIDER_LAWS: an exponential
+    stiffness, primary creep as a power or the logarithm of time). Where the final model still
+    misses the record, each named effect that has a wider law is fitted again with it in its place
+    (starts: _wider_law_starts), kept as a rival law is (a lower BIC, the held-out prediction no
+    worse: _law_judged). Tried only then, so a record the search's own laws explain takes no
+    longer. Returns the model, its held-out error and a list of Refinements."""
+    refinements = []
+    for effect, (law, other) in WIDER_LAWS.items():
+        if cur.rms <= CRITERIA.within_noise * sigma or effect not in cur.effects or _law_of(cur.spec, effect) != law:
+            continue
+        new = _with_law(cur.spec, effect, other).for_experiment(trace.experiment)
+        fm = fit(trace, new, cur.effects, _wider_law_starts(trace, cur, new, effect, law), baseline_rms=cur.rms)
+        terms = tuple(k for k in fm.free if k not in cur.free) if fm.ok else ()
+        held = float("nan")
+        if not fm.ok:
+            ok, verdict = False, f"the fit failed: {fm.message}"
+        else:
+            bic = bic_change(cur, fm, len(trace.time))
+            if bic < 0.0 and fm.rms < cur.rms:
+                pf = fit(part, new, cur.effects, [fm.params])
+                held = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
+            ok, verdict = _law_judged(cur.rms, fm.rms, bic, cur_held, held, sigma, law)
+        r = Refinement(effect, terms, cur.rms, fm.rms if fm.ok else float("inf"), cur_held, held,
+                       bic if fm.ok else float("inf"), ok, verdict,
+                       {k: float(fm.params[k]) for k in terms} if fm.ok else {}, law=f"{law} -> {other}")
+        say(f"  law of {effect}, {law} -> {other}: {'kept' if ok else 'not kept'}: {verdict}")
+        refinements.append(r)
+        if ok:
+            cur, cur_held = fm, held
+    return cur, cur_held, refinements

@@ -25,7 +25,7 @@ from .nuisance import nuisance_parameters, nuisance_start
 from .. import nuisance as NZ
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Retest, Step
 from .refine import _knots_unseen, _shape_groups, refine_shapes
-from .rival import IWAN_STAGE_CAP_FACTOR, bank_cap_factor, finer_bank, restart_idle_elements, rival_law
+from .rival import IWAN_STAGE_CAP_FACTOR, bank_cap_factor, finer_bank, restart_idle_elements, rival_law, wider_law
 from .samples import _truncated, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
 from .scales import _scales
 from .starts import _damping_table_starts, _reduced_starts, candidate_starts
@@ -505,6 +505,8 @@ class Search:
             swapped = self.swap_rival()
         if swapped and self.cur.spec.hysteresis == "iwan":
             self.iwan_stages()
+        if not self.budget_hit:
+            self.swap_wider_laws()
 
     def adopt(self, result, where: str) -> bool:
         """A last stage's (model, held-out error, record): kept on record, and the model taken
@@ -577,6 +579,23 @@ class Search:
         if swapped:
             self.reshape(set(self.cur.effects) - {"hysteresis"})
         return swapped
+
+    def swap_wider_laws(self) -> None:
+        """The elastic law and creep fitted again with their wider laws in their place (wider_law),
+        where the model still misses the record."""
+        new, held, refs = wider_law(
+            self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
+            lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
+                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms),
+            self.say)
+        if self.budget_hit:
+            _not_kept_for_budget(refs)
+            new = self.cur
+            if any(r.accepted for r in refs):
+                self.stop += "; " + self.out_of_budget("while a wider law was fitted")
+        self.refinements.extend(refs)
+        if new is not self.cur:
+            self.adopt_model(new, held)
 
     def final_fit(self) -> None:
         """The final model fitted once more from the searched optimum (WHOLE_RECORD_ITERATIONS), with

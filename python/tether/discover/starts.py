@@ -128,7 +128,7 @@ def _retardation_times_start(trace: Trace, spec: ModelSpec, params: dict, sc: _S
     from itertools import combinations
 
     from ..fit.creep_start import kelvin_response, slip_response
-    from ..fit.elastic import cubic_inverse
+    from ..fit.elastic import elastic_inverse
     from ..fit.equation_error import scaled_nnls
 
     if trace.experiment != "creep" or not sc.hold > 0:
@@ -138,11 +138,8 @@ def _retardation_times_start(trace: Trace, spec: ModelSpec, params: dict, sc: _S
     if not T.max() > 0:
         return None
     eps = np.asarray(trace.measured, float) / float(trace.length_m)
-    if spec.stiffness == "cubic":
-        elastic = cubic_inverse(params)(T)
-    else:
-        ea = float(params.get("EA", sc.ea))
-        elastic = T / ea
+    ea = float(params.get("EA", sc.ea))
+    elastic = elastic_inverse(spec.stiffness, {**params, "EA": ea})(T)
     slip_tau = float(params.get("slip_regen_tau", 3600.0))
     grid = retardation_grid(t, sc.hold)
     kelvin = [kelvin_response(t, T, tau) for tau in grid]
@@ -162,7 +159,7 @@ def _retardation_times_start(trace: Trace, spec: ModelSpec, params: dict, sc: _S
     slip = max(float(coef[2]), 1e-9)
     out.update(slip_capacity0=slip, slip_rate=slip / slip_tau)
     c = float(coef[0] - coef[1])
-    if spec.stiffness != "cubic" and 1.0 / ea + c > 0:
+    if spec.stiffness == "linear" and 1.0 / ea + c > 0:
         out["EA"] = 1.0 / (1.0 / ea + c)
     return out
 
@@ -206,6 +203,8 @@ def _starts_for_effect(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace
         w = {"a1": sc.ea, "a2": 0.0, "a3": 0.0}
         w.update(_boucwen_start(sc, 0.1, 0.3))
         starts += [None, w]
+    elif new.stiffness == "exponential" and old.stiffness != "exponential":
+        starts.append(None)               # tether.fit's fit of the load-elongation curve
     elif new.stiffness == "cubic" and old.stiffness != "cubic":
         ea = warm.get("EA", sc.ea)
         w = dict(warm)
@@ -280,6 +279,6 @@ def _reduced_starts(cur: ModelFit, reduced: ModelSpec, sc: _Scales) -> list:
     """Starts for ``cur`` without one of its effects: its own values (terms of the removed effect
     dropped), and tether.fit's data-based estimate."""
     p = {k: v for k, v in cur.params.items() if k in reduced.parameters}
-    if cur.spec.stiffness == "cubic" and reduced.stiffness == "linear":
+    if cur.spec.stiffness != "linear" and reduced.stiffness == "linear":
         p["EA"] = sc.ea
     return [p, None]

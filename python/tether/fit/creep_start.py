@@ -10,7 +10,7 @@ import numpy as np
 
 from ..models import ModelSpec
 from ..traces import Trace
-from .elastic import cubic_inverse
+from .elastic import elastic_inverse
 from .equation_error import scaled_nnls
 
 
@@ -78,21 +78,84 @@ def _creep_compliances(traces: Sequence[Trace], elastic: Callable[[np.ndarray], 
 
 
 def creep_estimate(traces: Sequence[Trace], spec: ModelSpec, values: Mapping[str, float]) -> dict:
-    """creep_J1..3, slip_capacity0 and slip_rate from the creep tests among ``traces``, the elastic
+    """creep_J1..3, slip_capacity0 and slip_rate (primary creep: primary_J, primary_tau, primary_n in
+    the slip's place, primary_estimate) from the creep tests among ``traces``, the elastic
     law and the time constants at ``values`` (the estimates so far over the FMU's defaults); {}
     without creep tests."""
     creep_traces = [tr for tr in traces if tr.experiment == "creep"]
     if not creep_traces:
         return {}
-    if spec.stiffness == "cubic":
-        inv = cubic_inverse({n: values[n] for n in ("a1", "a2", "a3", "pow_F", "pow_eps", "pow_n")})
-    else:
-        EA = values.get("EA", 3500.0)
-        inv = lambda T: np.asarray(T) / EA  # noqa: E731
+    inv = elastic_inverse(spec.stiffness, values)
     taus = [values.get(f"creep_tau{k}", v) for k, v in ((1, 1800.0), (2, 5400.0), (3, 172800.0))]
+    if spec.creep_law == "primary":
+        est = primary_estimate(creep_traces, inv, taus)
+        dc = est.pop("_compliance_change", 0.0)
+        EA = values.get("EA")
+        if spec.stiffness == "linear" and EA and 1.0 / EA + dc > 0:
+            est["EA"] = 1.0 / (1.0 / EA + dc)
+        return est
     slip_tau = values.get("slip_regen_tau", 3600.0)
     J, slip = _creep_compliances(creep_traces, inv, taus, slip_tau)
     floor = 1e-3 * max(J)
     # slip: what one loading uses up, at the rate that uses it within slip_tau
     return {"creep_J1": max(J[0], floor), "creep_J2": max(J[1], floor), "creep_J3": max(J[2], floor),
             "slip_capacity0": max(slip, 1e-9), "slip_rate": max(slip, 1e-9) / slip_tau}
+
+
+#: the primary creep's start: onset times log-spaced from the sample interval to ten times the
+#: longest hold, and these exponents of time (0: logarithmic)
+PRIMARY_TAU_GRID, PRIMARY_N_GRID = 13, (0.0, 0.15, 0.3, 0.5)
+
+
+def primary_response(t: np.ndarray, T: np.ndarray, tau: float, n: float) -> np.ndarray:
+    """Primary creep strain of unit compliance (physics/creep.c, creep_law = primary) under the
+    tension ``T`` sampled at ``t``: over each interval the tension at the mean of its ends, the law
+    advanced exactly there from the time equivalent to the strain reached (strain hardening). The
+    strain of compliance J is J times this (the law is homogeneous in J)."""
+    w = np.zeros_like(T)
+    for i in range(1, len(t)):
+        h, Ti = t[i] - t[i - 1], 0.5 * (T[i] + T[i - 1])
+        if not Ti > 0:
+            w[i] = w[i - 1]
+            continue
+        x = w[i - 1] / Ti
+        if n > 0:
+            te = tau * ((1 + n * x) ** (1 / n) - 1)
+            w[i] = Ti / n * ((1 + (te + h) / tau) ** n - 1)
+        else:
+            te = tau * math.expm1(min(x, 700.0))
+            w[i] = Ti * math.log1p((te + h) / tau)
+    return w
+
+
+def primary_estimate(traces: Sequence[Trace], elastic: Callable[[np.ndarray], np.ndarray],
+                     taus: Sequence[float]) -> dict:
+    """primary_J, primary_tau, primary_n and the Kelvin compliances creep_J1..3 (time constants
+    ``taus``) by non-negative least squares on the strain the elastic law leaves unexplained, for
+    each onset time and exponent of a grid (PRIMARY_TAU_GRID x PRIMARY_N_GRID), the best kept, and
+    the change of the elastic compliance beside them ('_compliance_change', 1/N); {} without a
+    loaded sample."""
+    ts = [np.asarray(tr.time, float) for tr in traces]
+    Ts = [np.asarray(tr.input, float) for tr in traces]
+    if not any(T.max() > 0 for T in Ts):
+        return {}
+    b = np.concatenate([np.asarray(tr.measured, float) / float(tr.length_m) - elastic(T) for tr, T in zip(traces, Ts)])
+    kelvin = np.vstack([np.column_stack([kelvin_response(t, T, tau) for tau in taus]) for t, T in zip(ts, Ts)])
+    dt = min(float(np.median(np.diff(t))) for t in ts)
+    span = max(float(t[-1] - t[0]) for t in ts)
+    # the elastic law's compliance corrected beside them (c T, c of either sign): its estimate from
+    # the first sample after each load change holds the primary creep of that first interval
+    T_all = np.concatenate(Ts)
+    best = None
+    for tau in np.geomspace(max(dt, 1.0), 10.0 * span, PRIMARY_TAU_GRID):
+        for n in PRIMARY_N_GRID:
+            w = np.concatenate([primary_response(t, T, float(tau), n) for t, T in zip(ts, Ts)])
+            coef, res = scaled_nnls(np.column_stack([w, kelvin, T_all, -T_all]), b)
+            if np.all(np.isfinite(coef)) and (best is None or res < best[0]):
+                best = (res, float(tau), n, coef)
+    if best is None or not best[3][0] > 0:
+        return {}
+    _, tau, n, coef = best
+    J = [max(float(c), 1e-3 * float(coef[0])) for c in coef[1:1 + len(taus)]]
+    return {"primary_J": float(coef[0]), "primary_tau": tau, "primary_n": n,
+            **{f"creep_J{k + 1}": j for k, j in enumerate(J)}, "_compliance_change": float(coef[-2] - coef[-1])}

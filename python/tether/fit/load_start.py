@@ -12,6 +12,7 @@ import numpy as np
 from ..models import ModelSpec
 from ..traces import Trace
 from .creep_start import creep_estimate
+from .elastic import exponential_from_curve
 from .equation_error import scaled_lstsq
 from .iwan_bank import load_iwan_estimate
 
@@ -30,8 +31,9 @@ def load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> d
 
 
 def _static_law(traces: Sequence[Trace], spec: ModelSpec) -> dict:
-    """EA (and the cubic's a1..a3) by least squares of tension against strain over the
-    load-unload tests' loaded samples; a creep test alone informs only EA (two load levels)."""
+    """EA (and the cubic's a1..a3, or the exponential's exp_F, exp_eps) by least squares of tension
+    against strain over the load-unload tests' loaded samples; a creep test alone informs only EA
+    (two load levels)."""
     est: dict = {}
     eps_all, T_all = [], []
     static = [tr for tr in traces if tr.experiment == "load_unload"]
@@ -61,6 +63,8 @@ def _static_law(traces: Sequence[Trace], spec: ModelSpec) -> dict:
             coef = scaled_lstsq(np.column_stack([eps, eps ** 2, eps ** 3]), T)
             if coef[0] > 0:
                 est.update(a1=float(coef[0]), a2=float(coef[1]), a3=float(coef[2]))
+        if spec.stiffness == "exponential" and static:
+            est.update(exponential_from_curve(eps, T) or {})
     return est
 
 

@@ -12,13 +12,16 @@ from ..models import IWAN_K, IWAN_K_FIT, ModelSpec, TRACE_PARAMETERS, SWITCHES, 
 from .result import FitError
 
 #: fitted on a log scale (one sign; the engine's steps are relative)
-LOG_SCALED = {"EA", "a1", "c0", "bw_A", "kaw_F_ref", "kaw_eps_ref", "creep_J1", "creep_J2", "creep_J3",
+LOG_SCALED = {"EA", "a1", "exp_F", "exp_eps", "primary_J", "primary_tau", "c0", "bw_A", "kaw_F_ref", "kaw_eps_ref", "creep_J1", "creep_J2", "creep_J3",
               "creep_tau1", "creep_tau2", "creep_tau3", "slip_capacity0", "slip_rate", "slip_knee",
               "slip_load_half", "slip_load_exponent", "slip_regen_tau", "slip_limit", *IWAN_K}
 #: the elastic law and viscous damping: the first stage
-FIRST_STAGE = {"EA", "a1", "a2", "a3", "c0", "kaw_LT", "kaw_RT", "kaw_F_ref", "kaw_residual", "kaw_eps_ref"}
-#: the creep terms a fit frees by default: the Kelvin compliances and the slip
-CREEP_FREE = ("creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate")
+FIRST_STAGE = {"EA", "a1", "a2", "a3", "exp_F", "exp_eps", "c0", "kaw_LT", "kaw_RT", "kaw_F_ref", "kaw_residual", "kaw_eps_ref"}
+#: the creep terms a fit frees by default, by creep law: the Kelvin compliances and the slip, or the
+#: primary creep's compliance, onset time and exponent of time
+CREEP_FREE_BY_LAW = {"kelvin_slip": ("creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate"),
+                     "primary": ("creep_J1", "creep_J2", "creep_J3", "primary_J", "primary_tau", "primary_n")}
+CREEP_FREE = CREEP_FREE_BY_LAW["kelvin_slip"]
 
 
 def model_spec(model) -> ModelSpec:
@@ -29,7 +32,7 @@ def model_spec(model) -> ModelSpec:
 def default_free_parameters(spec, experiment: str) -> list[str]:
     """The parameters the data of ``experiment`` can determine for ``spec``.
 
-    Elastic law: ``EA``; cubic ``a1 a2 a3``; Kawabata ``kaw_LT kaw_RT kaw_F_ref`` plus the residual
+    Elastic law: ``EA``; cubic ``a1 a2 a3``; exponential ``exp_F exp_eps``; Kawabata ``kaw_LT kaw_RT kaw_F_ref`` plus the residual
     strain ``kaw_residual`` where the load returns to zero (load tests; ``kaw_eps_ref`` stays fixed:
     the virgin curve through (eps_ref, F_ref) is one curve, a point on it is one number).
     Damping (payload rig only; quasi-static load tests do not see it): ``c0``, plus ``c1 c2`` for
@@ -39,15 +42,15 @@ def default_free_parameters(spec, experiment: str) -> list[str]:
     iwan_slip_grid; elements 9..16 stay absent). Creep (creep tests
     only; seconds of vibration do not see it): the Kelvin compliances ``creep_J1..3`` (time
     constants fixed at their values, spanning minutes to days) and the slip ``slip_capacity0``,
-    ``slip_rate``; a creep test holds two load levels, which determine ``EA`` but not a cubic or
+    ``slip_rate`` (primary creep: ``primary_J primary_tau primary_n`` in the slip's place); a creep test holds two load levels, which determine ``EA`` but not a cubic or
     Kawabata law (held at its values: fit it on a load test and pass it with ``fixed``).
     """
     spec = model_spec(spec).for_experiment(experiment)
     # two load levels cannot determine a three-coefficient law: fit it on a load test
-    many = experiment == "creep" and (spec.stiffness == "cubic" or spec.hysteresis == "kawabata")
+    many = experiment == "creep" and (spec.stiffness != "linear" or spec.hysteresis == "kawabata")
     names = law_free_parameters(spec, elastic=not many)
     if spec.creep and experiment == "creep":
-        names += CREEP_FREE
+        names += CREEP_FREE_BY_LAW[spec.creep_law]
     return names
 
 
@@ -63,6 +66,8 @@ def law_free_parameters(spec: ModelSpec, elastic: bool = True) -> list[str]:
         names += ["kaw_LT", "kaw_RT", "kaw_F_ref"] + ([] if payload else ["kaw_residual"])
     elif spec.stiffness == "cubic":
         names += ["a1", "a2", "a3"]
+    elif spec.stiffness == "exponential":
+        names += ["exp_F", "exp_eps"]
     else:
         names += ["EA"]
     if payload:

@@ -13,7 +13,7 @@ import numpy as np
 from .. import identify_native as idn
 from ..models import ModelSpec
 from ..traces import Trace
-from .elastic import cubic_from_taylor
+from .elastic import cubic_from_taylor, exponential_from_taylor
 from .equation_error import damping_columns, restoring_columns, scaled_lstsq, taut_for_sure
 from .iwan_bank import IWAN_CAP, iwan_params, payload_iwan_bank
 from .kinematics import Kinematics, dominant_frequency, kinematics
@@ -53,7 +53,7 @@ def payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
     L0 = float(trace.length_m)
     f_dom = dominant_frequency(t, np.asarray(trace.measured, float))
     K = kinematics(trace, f_dom)
-    eq = _Equation(K, K.f - m * K.a, spec.stiffness == "cubic" or spec.hysteresis == "kawabata",
+    eq = _Equation(K, K.f - m * K.a, spec.stiffness != "linear" or spec.hysteresis == "kawabata",
                    spec.damping == "displacement")
     keep = K.use.copy()
     amp = float(np.max(np.abs(K.x[keep]))) or 1e-9
@@ -148,6 +148,12 @@ def _elastic_start(k: list[float], spec: ModelSpec, cubic: bool, k_lin: float, L
     the coefficients themselves, as '_k_taylor')."""
     if spec.hysteresis == "kawabata":
         return {"_k_taylor": k}
+    if spec.stiffness == "exponential":
+        # no stiffening seen: a law near linear, its strain scale ten times the balance strain
+        k1 = k[0] if k[0] > 0 else k_lin
+        e_w = weight / (k1 * L0) if weight > 0 else 1e-3
+        return exponential_from_taylor(k1, k[1], L0, weight) or {"exp_F": 9.0 * max(weight, k1 * L0 * 1e-3),
+                                                                  "exp_eps": 10.0 * e_w}
     if cubic:
         a = cubic_from_taylor(k[0], k[1], k[2], L0, weight)
         if a is None or not a["a1"] > 0:
