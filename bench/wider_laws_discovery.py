@@ -44,48 +44,46 @@ def _write(folder: Path, name: str, experiment: str, columns: dict) -> Path:
     return folder / name
 
 
-def exponential_record(folder: Path, noise: float) -> Path:
-    from tether import identify_native as idn
+#: the load cycles of the load-test records (two cycles 0-60-0 N) and the loads of the creep records
+#: (4 h at 80 N, 2 h unloaded, 2 h at 50 N, a sample a minute)
+def _load_cycles():
     t = np.linspace(0.0, 400.0, 1601)
-    load = 60.0 * np.sin(np.pi * t / 200.0) ** 2
-    settings = dict(rig=3, stiffness=3, exp_F=30.0, exp_eps=0.015, damping=1, hysteresis=1, creep=0, slack=0, L0=L0)
+    return t, 60.0 * np.sin(np.pi * t / 200.0) ** 2
+
+
+def _creep_loads():
+    t = np.arange(0.0, 8 * 3600.0 + 1.0, 60.0)
+    return t, np.where(t < 4 * 3600.0, 80.0, np.where(t < 6 * 3600.0, 0.0, 50.0))
+
+
+def _drawn(folder: Path, name: str, experiment: str, t, load, settings: dict, noise: float, seed: int) -> Path:
+    """A record of the load rig drawn by the engine with ``settings``, its elongation with noise."""
+    from tether import identify_native as idn
+    settings = dict(rig=3, damping=1, hysteresis=1, slack=0, L0=L0, **settings)
     u = idn.simulate(idn.Experiment(t, settings=settings, input_kind=idn.INPUT_LOAD, input=load, output="elongation"))
-    u = u + np.random.default_rng(11).normal(0.0, noise, t.size)
-    return _write(folder, "exponential", "load_unload", {"time": t, "load": load, "elongation": u})
+    u = u + np.random.default_rng(seed).normal(0.0, noise, t.size)
+    return _write(folder, name, experiment, {"time": t, "load": load, "elongation": u})
+
+
+def exponential_record(folder: Path, noise: float) -> Path:
+    return _drawn(folder, "exponential", "load_unload", *_load_cycles(),
+                  dict(stiffness=3, exp_F=30.0, exp_eps=0.015, creep=0), noise, 11)
 
 
 def primary_record(folder: Path, noise: float) -> Path:
-    from tether import identify_native as idn
-    t = np.arange(0.0, 8 * 3600.0 + 1.0, 60.0)
-    load = np.where(t < 4 * 3600.0, 80.0, np.where(t < 6 * 3600.0, 0.0, 50.0))
-    settings = dict(rig=3, stiffness=1, EA=3000.0, damping=1, hysteresis=1, creep=1, creep_law=2, slack=0, L0=L0,
-                    creep_J1=1e-6, creep_tau1=1800.0, creep_J2=0.0, creep_J3=0.0, primary_J=2e-6, primary_tau=30.0,
-                    primary_n=0.2)
-    u = idn.simulate(idn.Experiment(t, settings=settings, input_kind=idn.INPUT_LOAD, input=load, output="elongation"))
-    u = u + np.random.default_rng(12).normal(0.0, noise, t.size)
-    return _write(folder, "primary", "creep", {"time": t, "load": load, "elongation": u})
+    return _drawn(folder, "primary", "creep", *_creep_loads(),
+                  dict(stiffness=1, EA=3000.0, creep=1, creep_law=2, creep_J1=1e-6, creep_tau1=1800.0, creep_J2=0.0,
+                       creep_J3=0.0, primary_J=2e-6, primary_tau=30.0, primary_n=0.2), noise, 12)
 
 
 def cubic_record(folder: Path, noise: float) -> Path:
     """The search's own law (the FMU's default cubic), on the exponential record's load cycles."""
-    from tether import identify_native as idn
-    t = np.linspace(0.0, 400.0, 1601)
-    load = 60.0 * np.sin(np.pi * t / 200.0) ** 2
-    settings = dict(rig=3, stiffness=2, damping=1, hysteresis=1, creep=0, slack=0, L0=L0)
-    u = idn.simulate(idn.Experiment(t, settings=settings, input_kind=idn.INPUT_LOAD, input=load, output="elongation"))
-    u = u + np.random.default_rng(13).normal(0.0, noise, t.size)
-    return _write(folder, "cubic", "load_unload", {"time": t, "load": load, "elongation": u})
+    return _drawn(folder, "cubic", "load_unload", *_load_cycles(), dict(stiffness=2, creep=0), noise, 13)
 
 
 def kelvin_record(folder: Path, noise: float) -> Path:
     """The search's own creep law (the FMU's default Kelvin cells and slip), on the primary record's loads."""
-    from tether import identify_native as idn
-    t = np.arange(0.0, 8 * 3600.0 + 1.0, 60.0)
-    load = np.where(t < 4 * 3600.0, 80.0, np.where(t < 6 * 3600.0, 0.0, 50.0))
-    settings = dict(rig=3, stiffness=1, EA=3000.0, damping=1, hysteresis=1, creep=1, slack=0, L0=L0)
-    u = idn.simulate(idn.Experiment(t, settings=settings, input_kind=idn.INPUT_LOAD, input=load, output="elongation"))
-    u = u + np.random.default_rng(14).normal(0.0, noise, t.size)
-    return _write(folder, "kelvin", "creep", {"time": t, "load": load, "elongation": u})
+    return _drawn(folder, "kelvin", "creep", *_creep_loads(), dict(stiffness=1, EA=3000.0, creep=1), noise, 14)
 
 
 #: name -> (draw, the hidden effect, noise [m]); the last two need no wider law: their times with
