@@ -91,21 +91,31 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
                           if not k.startswith("_")})
     # (a power term's law simulates several times slower than the cubic's: its fits get the time)
     factor = RESHAPED_RIVAL_CAP_FACTOR if elastic_reshaped else 1.0
-    fm = fit(trace, new, cur.effects, starts, baseline_rms=cur.rms, cap_factor=factor)
-    n = len(trace.time)
-    terms = tuple(k for k in fm.free if k in HYSTERESIS_PARAMETERS[other]) if fm.ok else ()
+    return _law_swapped(trace, part, first, cur, cur_held, sigma, fit, new, effect, law, starts,
+                        lambda k: k in HYSTERESIS_PARAMETERS[other], say, cap_factor=factor)
+
+
+def _law_swapped(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
+                 new, effect: str, law: str, starts: list, reported: Callable[[str], bool],
+                 say: Callable[[str], None], **fit_options):
+    """``new`` (``cur`` with another law of ``effect`` in ``law``'s place) fitted from ``starts`` and
+    judged as a rival law is (_law_judged: a lower BIC, the held-out prediction no worse; the
+    held-out fit asked only where the whole record's error falls). Returns the model (``new``'s fit
+    where kept, else ``cur``), its held-out error and the Refinement, whose terms are the fit's free
+    terms ``reported`` selects. ``fit_options`` go to both fits."""
+    other = _law_of(new, effect)
+    fm = fit(trace, new, cur.effects, starts, baseline_rms=cur.rms, **fit_options)
+    held, bic, terms = float("nan"), float("inf"), ()
     if not fm.ok:
-        r = Refinement(effect, terms, cur.rms, float("inf"), cur_held, float("nan"), float("inf"), False,
-                       f"the fit failed: {fm.message}", law=f"{law} -> {other}")
-        say(f"  law of {effect}, {law} -> {other}: not kept: {r.verdict}")
-        return cur, cur_held, r
-    bic = bic_change(cur, fm, n)
-    held = float("nan")
-    if bic < 0.0 and fm.rms < cur.rms:
-        pf = fit(part, new, cur.effects, [fm.params], cap_factor=factor)
-        held = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
-    ok, verdict = _law_judged(cur.rms, fm.rms, bic, cur_held, held, sigma, law)
-    r = Refinement(effect, terms, cur.rms, fm.rms, cur_held, held, bic, ok, verdict,
+        ok, verdict = False, f"the fit failed: {fm.message}"
+    else:
+        bic = bic_change(cur, fm, len(trace.time))
+        if bic < 0.0 and fm.rms < cur.rms:
+            pf = fit(part, new, cur.effects, [fm.params], **fit_options)
+            held = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
+        ok, verdict = _law_judged(cur.rms, fm.rms, bic, cur_held, held, sigma, law)
+        terms = tuple(k for k in fm.free if reported(k))
+    r = Refinement(effect, terms, cur.rms, fm.rms if fm.ok else float("inf"), cur_held, held, bic, ok, verdict,
                    {k: float(fm.params[k]) for k in terms}, law=f"{law} -> {other}")
     say(f"  law of {effect}, {law} -> {other}: {'kept' if ok else 'not kept'}: {verdict}")
     return (fm, held, r) if ok else (cur, cur_held, r)
@@ -325,22 +335,8 @@ def wider_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
         if cur.rms <= CRITERIA.within_noise * sigma or effect not in cur.effects or _law_of(cur.spec, effect) != law:
             continue
         new = _with_law(cur.spec, effect, other).for_experiment(trace.experiment)
-        fm = fit(trace, new, cur.effects, _wider_law_starts(trace, cur, new, effect, law), baseline_rms=cur.rms)
-        terms = tuple(k for k in fm.free if k not in cur.free) if fm.ok else ()
-        held = float("nan")
-        if not fm.ok:
-            ok, verdict = False, f"the fit failed: {fm.message}"
-        else:
-            bic = bic_change(cur, fm, len(trace.time))
-            if bic < 0.0 and fm.rms < cur.rms:
-                pf = fit(part, new, cur.effects, [fm.params])
-                held = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
-            ok, verdict = _law_judged(cur.rms, fm.rms, bic, cur_held, held, sigma, law)
-        r = Refinement(effect, terms, cur.rms, fm.rms if fm.ok else float("inf"), cur_held, held,
-                       bic if fm.ok else float("inf"), ok, verdict,
-                       {k: float(fm.params[k]) for k in terms} if fm.ok else {}, law=f"{law} -> {other}")
-        say(f"  law of {effect}, {law} -> {other}: {'kept' if ok else 'not kept'}: {verdict}")
+        cur, cur_held, r = _law_swapped(trace, part, first, cur, cur_held, sigma, fit, new, effect, law,
+                                        _wider_law_starts(trace, cur, new, effect, law),
+                                        lambda k, free=tuple(cur.free): k not in free, say)
         refinements.append(r)
-        if ok:
-            cur, cur_held = fm, held
     return cur, cur_held, refinements

@@ -509,15 +509,15 @@ class Search:
             self.swap_wider_laws()
 
     def adopt(self, result, where: str) -> bool:
-        """A last stage's (model, held-out error, record): kept on record, and the model taken
-        unless the time budget ran out during the stage."""
-        new, held, rec = result
-        if rec is not None and self.budget_hit and rec.accepted:
-            _not_kept_for_budget([rec])
+        """A last stage's (model, held-out error, record or list of records): kept on record, and the
+        model taken unless the time budget ran out during the stage."""
+        new, held, recs = result
+        recs = [r for r in (recs if isinstance(recs, list) else [recs]) if r is not None]
+        if self.budget_hit and any(r.accepted for r in recs):
+            _not_kept_for_budget(recs)
             new = self.cur
             self.stop += "; " + self.out_of_budget(where)
-        if rec is not None:
-            self.refinements.append(rec)
+        self.refinements.extend(recs)
         if new is self.cur:
             return False
         self.adopt_model(new, held)
@@ -583,19 +583,11 @@ class Search:
     def swap_wider_laws(self) -> None:
         """The elastic law and creep fitted again with their wider laws in their place (wider_law),
         where the model still misses the record."""
-        new, held, refs = wider_law(
+        self.adopt(wider_law(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
                 tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms),
-            self.say)
-        if self.budget_hit:
-            _not_kept_for_budget(refs)
-            new = self.cur
-            if any(r.accepted for r in refs):
-                self.stop += "; " + self.out_of_budget("while a wider law was fitted")
-        self.refinements.extend(refs)
-        if new is not self.cur:
-            self.adopt_model(new, held)
+            self.say), "while a wider law was fitted")
 
     def final_fit(self) -> None:
         """The final model fitted once more from the searched optimum (WHOLE_RECORD_ITERATIONS), with
