@@ -113,7 +113,8 @@ def balance_elongation(trace: Trace, fit: ModelFit) -> float | None:
         e = float(cubic_inverse(p)(W)) if W > 0 else 0.0
         return L0 * e if W <= 0 or abs(float(cubic_tension(p, e)) - W) <= 1e-6 * W else None
     if fit.spec.stiffness == "exponential":
-        return L0 * p["exp_eps"] * math.log1p(W / p["exp_F"]) if W > -p["exp_F"] else None
+        from ..fit.elastic import elastic_inverse
+        return L0 * float(elastic_inverse("exponential", p)(W)) if W > -p["exp_F"] else None
     return L0 * W / p["EA"] if p.get("EA") else None
 
 

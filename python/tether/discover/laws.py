@@ -85,16 +85,18 @@ def _replaced(group: Sequence[str]) -> tuple:
     return tuple(r for g in group for r in SHAPE_REPLACES.get(g, ()))
 
 
+#: the ModelSpec field that holds each effect's law (slack has none)
+LAW_FIELD = {"hysteresis": "hysteresis", "nonlinear_damping": "damping", "nonlinear_stiffness": "stiffness",
+             "creep": "creep_law"}
+
+
 def _law_of(spec: ModelSpec, effect: str) -> str | None:
-    return {"hysteresis": spec.hysteresis, "nonlinear_damping": spec.damping,
-            "nonlinear_stiffness": spec.stiffness, "creep": spec.creep_law}.get(effect)
+    return getattr(spec, LAW_FIELD[effect]) if effect in LAW_FIELD else None
 
 
 def _with_law(spec: ModelSpec, effect: str, law: str) -> ModelSpec:
     """``spec`` with ``law`` as the law of ``effect``."""
-    field = {"hysteresis": "hysteresis", "nonlinear_damping": "damping", "nonlinear_stiffness": "stiffness",
-             "creep": "creep_law"}[effect]
-    return replace(spec, **{field: law})
+    return replace(spec, **{LAW_FIELD[effect]: law})
 
 
 #: knots of the FMU's damping table c_table_1..6
@@ -117,15 +119,16 @@ def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
     if spec.creep:
         # a load-unload test (minutes) sees the fast cells and the slip rate; a creep test (hours
         # of holds) the time constants and the slip's shape as well
-        shape = CREEP_SHAPE if spec.creep_law == "kelvin_slip" else CREEP_SHAPE[:3]
-        names += list(CREEP_FREE_BY_LAW[spec.creep_law] + (shape if experiment == "creep" else ()))
+        shape = CREEP_SHAPE[spec.creep_law] if experiment == "creep" else ()
+        names += list(CREEP_FREE_BY_LAW[spec.creep_law] + shape)
     return names
 
 
-#: the creep terms discovery frees in a creep test beyond tether.fit's CREEP_FREE (primary creep:
-#: the Kelvin cells' time constants, the first three)
-CREEP_SHAPE = ("creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau", "slip_limit",
-               "slip_load_half")
+#: the creep terms discovery frees in a creep test beyond tether.fit's CREEP_FREE_BY_LAW, by creep
+#: law: the Kelvin cells' time constants, and the slip's shape beside them
+_KELVIN_TIMES = ("creep_tau1", "creep_tau2", "creep_tau3")
+CREEP_SHAPE = {"kelvin_slip": _KELVIN_TIMES + ("slip_knee", "slip_regen_tau", "slip_limit", "slip_load_half"),
+               "primary": _KELVIN_TIMES}
 
 
 def _floor(name: str, sc: _Scales) -> float:
@@ -134,8 +137,8 @@ def _floor(name: str, sc: _Scales) -> float:
             "bw_beta": 1e-2 / sc.amp, "bw_gamma": 1e-2 / sc.amp}.get(name, 0.0)
 
 
-_POSITIVE = ("EA", "a1", "exp_F", "exp_eps", "primary_J", "primary_tau", "c0", "c1", "c2", "c_drag", "bw_A", "kaw_F_ref", "creep_J1", "creep_J2", "creep_J3",
-             "slip_capacity0", "slip_rate", "creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau",
+_POSITIVE = ("EA", "a1", "exp_F", "exp_eps", "primary_J", "primary_tau", "c0", "c1", "c2", "c_drag", "bw_A",
+             "kaw_F_ref", "creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate", "creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau",
              "slip_limit", "slip_load_half", *IWAN_K)
 
 

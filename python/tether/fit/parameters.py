@@ -21,7 +21,6 @@ FIRST_STAGE = {"EA", "a1", "a2", "a3", "exp_F", "exp_eps", "c0", "kaw_LT", "kaw_
 #: primary creep's compliance, onset time and exponent of time
 CREEP_FREE_BY_LAW = {"kelvin_slip": ("creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate"),
                      "primary": ("creep_J1", "creep_J2", "creep_J3", "primary_J", "primary_tau", "primary_n")}
-CREEP_FREE = CREEP_FREE_BY_LAW["kelvin_slip"]
 
 
 def model_spec(model) -> ModelSpec:
