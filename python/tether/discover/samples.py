@@ -54,15 +54,15 @@ def _kept_samples(n: int, k: int, periodic: bool) -> np.ndarray:
 
 def thinned_input_miss(trace: Trace, k: int, kind: str | None = None) -> float:
     """How far the input rebuilt from every k-th sample (with the interpolation ``kind``; by default
-    the one thinned() picks) misses the samples dropped (RMS), carried to the measured column by the
-    ratio of the columns' standard deviations [unit of the measured column]; 0 for a record without
-    input."""
+    the one thinned() picks, the least of _rebuild_kinds' misses) misses the samples dropped (RMS),
+    carried to the measured column by the ratio of the columns' standard deviations [unit of the
+    measured column]; 0 for a record without input."""
     from ..run import input_pieces, record_period
 
     if trace.input is None:
         return 0.0
     if kind is None:
-        kind = thinned_interpolation(trace, k)
+        return min(thinned_input_miss(trace, k, kd) for kd in _rebuild_kinds(trace, k))
     t = np.asarray(trace.time, float)
     u = np.asarray(trace.input, float)
     P = int(trace.periodic_samples or 0)
@@ -87,12 +87,17 @@ def thinned_interpolation(trace: Trace, k: int) -> str:
     interpolation, or a cubic spline where that misses the dropped samples less (straight lines
     through every k-th sample of a smooth input miss it by (kh)^2 |u''| / 8, a spline by a power of
     kh four; a step in the input makes a spline ring, and the record's own kind is kept)."""
+    kinds = _rebuild_kinds(trace, k)
+    return kinds[0] if len(kinds) == 1 else min(kinds, key=lambda kind: thinned_input_miss(trace, k, kind))
+
+
+def _rebuild_kinds(trace: Trace, k: int) -> tuple:
+    """The interpolations the thinned record may rebuild its input with: the record's own, and a
+    cubic spline beside it (thinned_interpolation)."""
     from ..run import input_interpolation
 
     own = input_interpolation(trace)
-    if trace.input is None or own == "spline" or k <= 1:
-        return own
-    return min((own, "spline"), key=lambda kind: thinned_input_miss(trace, k, kind))
+    return (own,) if trace.input is None or own == "spline" or k <= 1 else (own, "spline")
 
 
 def search_thinning(trace: Trace, sigma: float) -> int:
