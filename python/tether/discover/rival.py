@@ -12,7 +12,7 @@ import numpy as np
 from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K, IWAN_K_FIT
 from ..traces import Trace
 from .fitting import _heldout, ModelFit
-from .judge import CRITERIA, _heldout_judges, _law_judged, _shape_judged, bic_change
+from .judge import CRITERIA, _gap, _heldout_judges, _law_judged, _shape_judged, bic_change
 from .laws import _law_of, _with_law, RIVAL_LAWS, WIDER_LAWS
 from .records import Refinement
 
@@ -53,7 +53,10 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     slack: Bouc-Wen won the hysteresis step, 10.4 x noise in the end, where the Iwan bank with slack
     gets 4.8). Where the final model still misses the record and an effect was named after the
     hysteresis, the hysteresis law is fitted again with its rival in its place, from the rival's
-    own fit of the hysteresis step and the final model's other terms. The rival is kept when it
+    own fit of the hysteresis step and the final model's other terms; so too where the hysteresis
+    was named last but the model still leaves something unexplained (CRITERIA.unexplained_gap): the
+    step chose its law from short fits, before the shapes and the nuisance were refitted beside it,
+    and a search stops only once every law's other form was tried. The rival is kept when it
     lowers the BIC and does not worsen the held-out prediction (asked where that prediction can
     judge, CRITERIA.shape_heldout_informative, as for the shape terms). Starts: the rival's own fit, with the
     final model's elastic law or its own; the rival matched to the fitted law's stiffness and force;
@@ -68,8 +71,10 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     effect = "hysteresis"
     law = cur.spec.hysteresis
     laws = RIVAL_LAWS[effect]
+    named_last = list(added).index(effect) == len(added) - 1 if effect in added else False
+    still_missing = _gap(cur.rms, sigma) >= CRITERIA.unexplained_gap * sigma
     if (cur.rms <= CRITERIA.within_noise * sigma or law not in laws or effect not in added
-            or (list(added).index(effect) == len(added) - 1 and not elastic_reshaped)):
+            or (named_last and not elastic_reshaped and not still_missing)):
         return cur, cur_held, None
     other = next(x for x in laws if x != law)
     if other not in rivals:
