@@ -1,10 +1,10 @@
 """What an effect and a law are, in one place: the effects each experiment can reveal, the models
 that add an effect (one law each, hysteresis several), the shape terms of each law, the terms a fit
-frees and their floors. The seed of the registry of issue 25."""
+frees and their floors. EFFECTS is the registry of issue 25; the tables are views of it."""
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -14,51 +14,115 @@ from ..traces import Trace
 from .scales import _Scales
 
 
+@dataclass(frozen=True)
+class Law:
+    """One law of an effect as the search uses it: ``name`` is its value in the ModelSpec field of
+    the effect; ``rigs`` the rigs whose records try it when the effect is added (None: every rig);
+    ``shapes`` the groups of shape terms refine_shapes may free from the final model (the search
+    for effects keeps them at the classic law's values: they change a law's shape, not which
+    effects the record shows); ``rival`` the law fitted again in its place at the end (rival_law);
+    ``wider`` the law fitted in its place where the final model still misses the record
+    (wider_law); ``added`` false for a law reached only as another's rival or wider law."""
+
+    name: str
+    rigs: tuple | None = None
+    shapes: tuple = ()
+    rival: str | None = None
+    wider: str | None = None
+    added: bool = True
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect of the trace format's vocabulary: ``law_field`` the ModelSpec field that holds its
+    law and ``absent`` that field's value without the effect (slack: a switch, no law), ``switch``
+    a ModelSpec flag the effect sets (creep), ``laws`` in the order a step tries them, ``unrevealed``
+    why each experiment that cannot reveal it cannot, ``leads`` the experiments built to show it,
+    whose search tries it first."""
+
+    name: str
+    law_field: str | None
+    absent: object
+    laws: tuple
+    unrevealed: dict
+    switch: str | None = None
+    leads: tuple = ()
+
+
+_QUASI_STATIC = ("load", "element")
+_HOURS = "creep acts over minutes to hours under a held load: it cannot show in this record"
+_NEVER_COMPRESSED = ("the tether is never pushed towards compression, where slack would act")
+
+#: the registry of effects and their laws (issue 25): adding a law or an effect is one entry here
+#: (plus the C law and its variables); the tables below are its views
+EFFECTS = (
+    Effect("nonlinear_stiffness", "stiffness", "linear", (
+        # the cubic's power term: a stiffness growing from zero as a fractional power of the strain,
+        # which the cubic misses near eps = 0 (a load test of the generator's power-law tether with
+        # Iwan friction stopped at 2.05 x noise with the cubic)
+        Law("cubic", shapes=(("pow_F", "pow_n"),), wider="exponential"),
+        # in a load test the exponential law is a candidate too: a Bouc-Wen force with beta = 0 and
+        # gamma < 0 is that law in disguise (dz/dx = A + |gamma| z both ways: z = (A/|gamma|)
+        # (exp(|gamma| x) - 1)), and with one parameter fewer it would name hysteresis for a
+        # stiffness the cubic misses (an exponential tether's load test: hysteresis named at 1.01 x
+        # noise, bench/wider_laws_discovery.py)
+        Law("exponential", rigs=_QUASI_STATIC)),
+        {}),
+    Effect("hysteresis", "hysteresis", "none", (
+        Law("boucwen", shapes=(("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
+                               ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")), rival="iwan"),
+        # Bouc-Wen's tangent stiffness approaches zero exponentially, inter-fibre friction's falls
+        # to zero at a finite strain: on records of the latter Bouc-Wen left 3.4-10 x noise
+        # (bench/hysteresis_law_gap.py). Its shape: the slip strains off the fit's grid (a load test
+        # of twelve elements slipping between 4e-4 and 8e-3: 3.7 x noise on the grid, 1.2 x free)
+        Law("iwan", shapes=(IWAN_EPS_FIT,), rival="boucwen"),
+        # the paper's loading and unloading branches, which replace the elastic law (their loading
+        # curve is a power law)
+        Law("kawabata", rigs=_QUASI_STATIC)),
+        {}),
+    Effect("nonlinear_damping", "damping", "viscous", (
+        # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
+        Law("displacement", shapes=(("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
+                                     "c_table_6"),)),),
+        {"load_unload": "a load test is quasi-static (no inertia, speeds near zero): damping, linear or not, "
+                        "does not act in it",
+         "creep": "a creep test holds its loads for hours and changes them between two samples: damping acts on "
+                  "no sample"}),
+    Effect("creep", "creep_law", "kelvin_slip", (
+        Law("kelvin_slip", wider="primary"),
+        Law("primary", added=False)),
+        {"free_vibration": "a free vibration lasts seconds, and " + _HOURS,
+         "forced": "a forced vibration lasts seconds, and " + _HOURS},
+        switch="creep", leads=("creep",)),
+    Effect("slack", None, None, (),
+           {"load_unload": "the load of a load test is never below zero: " + _NEVER_COMPRESSED,
+            "creep": "the load of a creep test is never below zero: " + _NEVER_COMPRESSED},
+           switch="slack"),
+)
+
+EFFECT = {e.name: e for e in EFFECTS}
+_EXPERIMENTS = ("free_vibration", "forced", "load_unload", "creep")
+
+
+def _search_order(experiment: str) -> tuple[str, ...]:
+    revealed = [e for e in EFFECTS if experiment not in e.unrevealed]
+    return tuple(e.name for e in revealed if experiment in e.leads) + tuple(
+        e.name for e in revealed if experiment not in e.leads)
+
+
 #: candidate effects per experiment (what the experiment can reveal), in the order they are tried
-CANDIDATES = {
-    "free_vibration": ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "slack"),
-    "forced": ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "slack"),
-    "load_unload": ("nonlinear_stiffness", "hysteresis", "creep"),
-    "creep": ("creep", "nonlinear_stiffness", "hysteresis"),
-}
+CANDIDATES = {x: _search_order(x) for x in _EXPERIMENTS}
 
 
 #: why an experiment cannot reveal each effect of the vocabulary it has no candidate for
 #: (CANDIDATES and this table together cover every effect of every experiment)
-NOT_REVEALED = {
-    "free_vibration": {"creep": "a free vibration lasts seconds, and creep acts over minutes to hours under a "
-                                "held load: it cannot show in this record"},
-    "forced": {"creep": "a forced vibration lasts seconds, and creep acts over minutes to hours under a held "
-                        "load: it cannot show in this record"},
-    "load_unload": {"nonlinear_damping": "a load test is quasi-static (no inertia, speeds near zero): damping, "
-                                         "linear or not, does not act in it",
-                    "slack": "the load of a load test is never below zero: the tether is never pushed towards "
-                             "compression, where slack would act"},
-    "creep": {"nonlinear_damping": "a creep test holds its loads for hours and changes them between two samples: "
-                                   "damping acts on no sample",
-              "slack": "the load of a creep test is never below zero: the tether is never pushed towards "
-                       "compression, where slack would act"},
-}
+NOT_REVEALED = {x: {e.name: e.unrevealed[x] for e in EFFECTS if x in e.unrevealed}
+                for x in _EXPERIMENTS if any(x in e.unrevealed for e in EFFECTS)}
 
 
 #: shape terms of a named effect's law that the last stage may free (see refine_shapes), per effect
-#: and law: each entry one group tried from the final model. The search for effects keeps them at
-#: the classic law's values (Bouc-Wen n = 1, no generalized terms): they change the shape of a law,
-#: not which effects the record shows.
-SHAPE_TERMS = {
-    ("hysteresis", "boucwen"): (("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
-                                ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")),
-    # the Iwan bank's slip strains, off the fit's grid (a load test of twelve elements slipping
-    # between 4e-4 and 8e-3: 3.7 x noise on the grid, 1.2 x with the slip strains free)
-    ("hysteresis", "iwan"): (IWAN_EPS_FIT,),
-    # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
-    ("nonlinear_damping", "displacement"): (("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
-                                             "c_table_6"),),
-    # the elastic law beyond the cubic: its power term (a stiffness growing from zero as a
-    # fractional power of the strain, which the cubic misses near eps = 0: a load test of the
-    # generator's power-law tether with Iwan friction stopped at 2.05 x noise with the cubic)
-    ("nonlinear_stiffness", "cubic"): (("pow_F", "pow_n"),),
-}
+#: and law: each entry one group tried from the final model
+SHAPE_TERMS = {(e.name, law.name): law.shapes for e in EFFECTS for law in e.laws if law.shapes}
 
 
 #: terms a shape refinement sets but does not fit
@@ -86,8 +150,7 @@ def _replaced(group: Sequence[str]) -> tuple:
 
 
 #: the ModelSpec field that holds each effect's law (slack has none)
-LAW_FIELD = {"hysteresis": "hysteresis", "nonlinear_damping": "damping", "nonlinear_stiffness": "stiffness",
-             "creep": "creep_law"}
+LAW_FIELD = {e.name: e.law_field for e in EFFECTS if e.law_field}
 
 
 def _law_of(spec: ModelSpec, effect: str) -> str | None:
@@ -190,65 +253,44 @@ def unrevealed(trace: Trace, effect: str) -> str | None:
 
 
 def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
-    """The models that add ``effect`` to ``spec``: one law per effect, but hysteresis has two, the
-    paper's Bouc-Wen force and the Iwan bank of inter-fibre friction (Bouc-Wen's tangent stiffness
-    approaches zero exponentially, friction's falls to zero at a finite strain: on records of the
-    latter Bouc-Wen left 3.4-10 x noise, bench/hysteresis_law_gap.py), and in a load test a third,
-    the paper's Kawabata branches (which replace the elastic law: their loading curve is a power
-    law); nonlinear stiffness in a load test has the exponential law beside the cubic."""
-    new = _model_for(spec, effect)
-    out = [new] if new is not None else []
-    if effect == "hysteresis" and spec.hysteresis == "none":
-        out.append(replace(spec, hysteresis="iwan"))
-    if effect == "hysteresis" and spec.hysteresis == "none" and trace.rig != "payload":
-        out.append(replace(spec, hysteresis="kawabata"))
-    if effect == "nonlinear_stiffness" and spec.stiffness == "linear" and spec.hysteresis != "kawabata" \
-            and trace.rig != "payload":
-        # a load test: the exponential law too, for a Bouc-Wen force with beta = 0 and gamma < 0 is
-        # that law in disguise (dz/dx = A + |gamma| z both ways: z = (A/|gamma|)(exp(|gamma| x) - 1)),
-        # and with one parameter fewer it would name hysteresis for a stiffness the cubic misses
-        # (an exponential tether's load test: hysteresis named at 1.01 x noise, bench/wider_laws_discovery.py)
-        out.append(replace(spec, stiffness="exponential"))
+    """The models that add ``effect`` to ``spec``: one per law of the effect (EFFECTS) that the
+    record's rig tries, in the registry's order; none where the model has the effect already, but
+    for nonlinear stiffness beside Kawabata's branches (_kawabata_split)."""
+    e = EFFECT[effect]
+    if effect in spec.effects:
+        return _kawabata_split(spec, effect)
+    if e.law_field is None:
+        return [replace(spec, **{e.switch: True})]
+    return [replace(spec, **{e.law_field: law.name, **({e.switch: True} if e.switch else {})})
+            for law in e.laws if law.added and (law.rigs is None or trace.rig in law.rigs)]
+
+
+def _kawabata_split(spec: ModelSpec, effect: str) -> list[ModelSpec]:
+    """Kawabata's power-law branches carry the elastic law (spec.effects counts them as nonlinear
+    stiffness too); the stiffness named beside them is a cubic law under a Bouc-Wen force, the
+    model that carries the effect by name."""
     if effect == "nonlinear_stiffness" and spec.hysteresis == "kawabata":
-        # Kawabata's power-law branches are one shape of nonlinear stiffness; a cubic law under a
-        # Bouc-Wen force is another, and the one that carries the effect by name
-        out.append(replace(spec, stiffness="cubic", hysteresis="boucwen"))
-    return out
+        return [replace(spec, stiffness="cubic", hysteresis="boucwen")]
+    return []
 
 
 #: the damping table's knots (SHAPE_TERMS), tried as the law of a nonlinear-damping candidate
 DAMPING_TABLE = SHAPE_TERMS[("nonlinear_damping", "displacement")][0]
 
 
-def _model_for(spec: ModelSpec, effect: str) -> ModelSpec | None:
-    if effect == "nonlinear_stiffness":
-        return None if spec.hysteresis == "kawabata" or spec.stiffness != "linear" else replace(spec, stiffness="cubic")
-    if effect == "hysteresis":
-        return None if spec.hysteresis != "none" else replace(spec, hysteresis="boucwen")
-    if effect == "nonlinear_damping":
-        return None if spec.damping == "displacement" else replace(spec, damping="displacement")
-    if effect == "creep":
-        return None if spec.creep else replace(spec, creep=True)
-    if effect == "slack":
-        return None if spec.slack else replace(spec, slack=True)
-    raise ValueError(effect)
-
-
 def _without(spec: ModelSpec, effect: str) -> ModelSpec:
-    return {"nonlinear_stiffness": lambda: replace(spec, stiffness="linear"),
-            "hysteresis": lambda: replace(spec, hysteresis="none"),
-            "nonlinear_damping": lambda: replace(spec, damping="viscous"),
-            "creep": lambda: replace(spec, creep=False),
-            "slack": lambda: replace(spec, slack=False)}[effect]()
+    """``spec`` without ``effect``: its switch off, or its law field at the law-free value."""
+    e = EFFECT[effect]
+    return replace(spec, **({e.switch: False} if e.switch else {e.law_field: e.absent}))
 
 
 #: the laws of one effect that stand in for each other: the law that won an effect's step is fitted
 #: again at the end with its rival in its place (rival_law)
-RIVAL_LAWS = {"hysteresis": ("boucwen", "iwan")}
+RIVAL_LAWS = {e.name: tuple(law.name for law in e.laws if law.rival) for e in EFFECTS
+              if any(law.rival for law in e.laws)}
 
 
-#: laws beyond the search's own, by effect (the search's law, the wider law): the exponential
-#: stiffness for the cubic, primary creep (a power or the logarithm of time) for the Kelvin cells
-#: and slip. Fitted in the named law's place only where the final model still misses the record
-#: (rival.wider_law), so a record the search's laws explain takes no longer.
-WIDER_LAWS = {"nonlinear_stiffness": ("cubic", "exponential"), "creep": ("kelvin_slip", "primary")}
+#: laws beyond the search's own, by effect (the search's law, the wider law): fitted in the named
+#: law's place only where the final model still misses the record (rival.wider_law), so a record
+#: the search's laws explain takes no longer
+WIDER_LAWS = {e.name: (law.name, law.wider) for e in EFFECTS for law in e.laws if law.wider}
