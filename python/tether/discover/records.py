@@ -76,6 +76,7 @@ class Retest:
     bic_change: float               # BIC with the effect less BIC without it, on the searched samples
     kept: bool
     verdict: str
+    beside: str | None = None       # what it was tested beside: None for the step's new effect
 
 
 @dataclass

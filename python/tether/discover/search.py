@@ -126,6 +126,7 @@ class Search:
         self.removals: list[Removal] = []
         self.refinements: list[Refinement] = []
         self.rivals: dict = {}           # effect -> {law: parameters of its candidate's fit}
+        self.retested_at = 0             # len(refinements) when the named effects were last re-tested
         self.stop = ""
         self.fit_start_model()
 
@@ -209,6 +210,7 @@ class Search:
             if not self.sweep(sweep):
                 break
         self.last_stages()
+        self.retest_after_refinements()
         self.final_fit()
         return Discovery(trace=self.whole, noise=self.noise, start_model=self.spec.canonical, fits=self.fits,
                          steps=self.steps, stop_reason=self.stop, seconds=time.perf_counter() - self.t_begin,
@@ -475,8 +477,15 @@ class Search:
     def retest_named(self, win: CandidateResult) -> None:
         """Does an effect added earlier still earn its parameters next to the new one (the whole
         record's rule)? The first that does not is removed."""
+        self.retest([x for x in self.cur.effects if x not in self.base_effects and x != win.effect], win.effect)
+        self.retested_at = len(self.refinements)
+
+    def retest(self, effects: Sequence[str], beside: str, record_beside: str | None = None) -> bool:
+        """Each of ``effects`` tested again beside the current model (refitted without it, judged by
+        the whole record's rule, full_data_verdict); the first that no longer earns its parameters is
+        removed. True where one was."""
         cur, sigma = self.cur, self.sigma
-        for e in [x for x in cur.effects if x not in self.base_effects and x != win.effect]:
+        for e in effects:
             red = _without(cur.spec, e).for_experiment(self.trace.experiment)
             rf = self.fit(self.trace, red, tuple(x for x in cur.effects if x != e), _reduced_starts(cur, red, self.sc),
                           self.sc)
@@ -484,14 +493,29 @@ class Search:
                 continue
             bic = bic_change(rf, cur, self.n)
             keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
-            self.steps[-1].retests.append(Retest(e, bic, keep, why))
+            self.steps[-1].retests.append(Retest(e, bic, keep, why, record_beside))
             if keep:
                 continue
             self.say(f"removed {e}: without it the RMS error is {rf.rms / sigma:.2f} x noise ({why})")
             self.removals.append(Removal(e, cur.model, rf.model, cur.rms, rf.rms,
-                                         f"next to {win.effect} it no longer earns its parameters: {why}"))
+                                         f"next to {beside} it no longer earns its parameters: {why}"))
             self.adopt_model(rf, self.heldout_of(rf))
-            break
+            return True
+        return False
+
+    def retest_after_refinements(self) -> None:
+        """Every named effect tested again where a last stage changed a law after the last step's
+        re-tests (a shape refined, an Iwan bank restarted or made finer, a rival or wider law put in
+        its place): an effect named to make up for a law's wrong shape need not earn its place once
+        the shape is right (the generator's Iwan friction with slack: a cubic named beside a bank on
+        its grid of slip strains, whose strains were freed and idle elements restarted after it).
+        The effects whose own law changed are not tested: a better law only adds to what they earn.
+        Removed one at a time, the rest tested again after each removal."""
+        changed = {r.effect for r in self.refinements[self.retested_at:] if r.accepted}
+        beside = "the refined laws (" + ", ".join(sorted(changed)) + ")"
+        while changed and not self.budget_hit and self.retest(
+                [x for x in self.cur.effects if x not in self.base_effects and x not in changed], beside, beside):
+            pass
 
     # ---- the last stages: the Iwan bank, the rival law, the whole record
     def last_stages(self) -> None:

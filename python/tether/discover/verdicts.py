@@ -42,6 +42,11 @@ def _tests_of(d: Discovery, effect: str) -> list:
     return out
 
 
+def _beside(d: Discovery, k: int, r: Retest) -> str:
+    """What a re-test of step k was run beside: the step's new effect, or what the Retest says."""
+    return r.beside or d.steps[k - 1].effect
+
+
 def _within_noise(d: Discovery) -> bool:
     return d.final.rms <= CRITERIA.within_noise * d.noise.sigma
 
@@ -57,7 +62,7 @@ def _present(d: Discovery, effect: str, base: tuple) -> dict:
         text, bic = f"added in step {k} ({st.model_before} -> {st.model_after}): {win.verdict}", win.bic_change
     for j, _, r in _tests_of(d, effect):
         if j > k and isinstance(r, Retest):
-            text += f"; tested again in step {j} beside {d.steps[j - 1].effect}, kept: {r.verdict}"
+            text += f"; tested again in step {j} beside {_beside(d, j, r)}, kept: {r.verdict}"
             bic = r.bic_change
     return _verdict("present", text, bic)
 
@@ -85,8 +90,8 @@ def _last_test(d: Discovery, effect: str) -> dict:
         return _never_tested(d, effect)
     k, st, t = tests[-1]
     if isinstance(t, Retest) and not t.kept:    # named earlier, removed in step k
-        return _verdict("absent", f"named in an earlier step, removed in step {k} beside {st.effect}: {t.verdict}",
-                        t.bic_change)
+        return _verdict("absent", f"named in an earlier step, removed in step {k} beside {_beside(d, k, t)}: "
+                                  f"{t.verdict}", t.bic_change)
     if isinstance(t, Retest):
         return _verdict("undetermined", f"kept when tested again in step {k}, but not in the final model "
                                         f"{d.final.model}")
