@@ -176,6 +176,12 @@ bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prep
         if (idx < 0) { err = std::string("setting '") + (e.setting_names[i] ? e.setting_names[i] : "(null)") + "': no such parameter"; return false; }
         if (!set_parameter(p.base, idx, e.setting_values[i], err)) return false;
     }
+    p.join = InputJoin();
+    if (e.input_kind != KT_INPUT_NONE)
+        for (int k = 0; k < e.n; ++k) {
+            p.join.value_scale = std::max(p.join.value_scale, std::fabs(e.input[k]));
+            if (e.input_der) p.join.rate_scale = std::max(p.join.rate_scale, std::fabs(e.input_der[3 * k]));
+        }
     p.outputs.clear();
     std::size_t measured_off;
     if (!output_offset(e.output, measured_off)) { err = std::string("output '") + e.output + "': not a Real output or local variable"; return false; }
@@ -200,14 +206,33 @@ struct IntegratorGuard {
     ~IntegratorGuard() { integrator_free(I); }
 };
 
+// the input polynomial (physics/tether.c) at s = t - t_ref, and its rate
+double input_polynomial(double value, const double *der, double s)
+{
+    return value + s * (der[0] + s * (der[1] / 2.0 + s * der[2] / 6.0));
+}
+
+double input_polynomial_rate(const double *der, double s)
+{
+    return der[0] + s * (der[1] + s * der[2] / 2.0);
+}
+
+enum class InputChange { none, continuous, jump };
+
 // what an importer's fmi2SetReal(input) + fmi2SetRealInputDerivatives does (fmu.c): the value and
 // derivatives are stored, a change asks for a restart, and the polynomial starts at the FMU's time.
 // The model's input is input_gain * recorded + offset_input (Measurement).
-bool set_input(tether_model &M, const Measurement &meas, const kt_experiment &e, int k, double t)
+// With `joins` (Prepared::continuous_input), a new piece that carries on what the model's equations
+// see of the last one at t (the force's value; the load's value and rate) is `continuous`: the
+// integrator may go on through it without a restart.
+InputChange set_input(tether_model &M, const Measurement &meas, const kt_experiment &e, int k, double t,
+                      const InputJoin *joins)
 {
     bool changed = false;
     double *value = e.input_kind == KT_INPUT_FORCE ? &M.in.force : &M.in.load;
     double *der = e.input_kind == KT_INPUT_FORCE ? M.in.force_der : M.in.load_der;
+    const double s_old = t - M.in.t_ref;
+    const double reached = input_polynomial(*value, der, s_old), rate = input_polynomial_rate(der, s_old);
     const double v = meas.input_gain * e.input[k] + meas.offset_input;
     if (*value != v) { *value = v; changed = true; }
     for (int j = 0; j < TETHER_INPUT_DERIVATIVE_ORDER; ++j) {
@@ -215,7 +240,14 @@ bool set_input(tether_model &M, const Measurement &meas, const kt_experiment &e,
         if (der[j] != d) { der[j] = d; changed = true; }
     }
     M.in.t_ref = t;
-    return changed;
+    if (!changed) return InputChange::none;
+    if (!joins) return InputChange::jump;
+    const double gain = std::fabs(meas.input_gain);
+    const double value_tol = InputJoin::tolerance * (gain * joins->value_scale + std::fabs(meas.offset_input));
+    if (!(std::fabs(v - reached) <= value_tol)) return InputChange::jump;
+    if (e.input_kind == KT_INPUT_LOAD && !(std::fabs(der[0] - rate) <= InputJoin::tolerance * gain * joins->rate_scale))
+        return InputChange::jump;
+    return InputChange::continuous;
 }
 
 } // namespace
@@ -263,7 +295,7 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
 
     double t = e.time[0];
     // inputs at the first sample are set before the initialisation (the load rig starts from them)
-    if (has_input) set_input(M, meas, e, 0, t);
+    if (has_input) set_input(M, meas, e, 0, t, nullptr);
     // fmi2ExitInitializationMode -> initialize_model
     M.in.t_ref = t;
     if (tether_initialize(&M, t, y, msg, sizeof msg) != 0) { err = msg; return false; }
@@ -288,7 +320,9 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     // one step: the inputs of sample s, the outputs there, then fmi2DoStep to sample s + 1
     auto step = [&](double *o, bool last) -> bool {
         if (over_time(16)) return false;
-        if (s > 0 && has_input && set_input(M, meas, e, input_index(s), t)) needs_reset = true;
+        if (s > 0 && has_input &&
+            set_input(M, meas, e, input_index(s), t, p.continuous_input ? &p.join : nullptr) == InputChange::jump)
+            needs_reset = true;
         if (o) {
             tether_outputs to;
             tether_compute_outputs(&M, t, y, &to);
