@@ -81,7 +81,9 @@ struct Prepared {
     const Limits *limits = nullptr; // checked during the simulation (NULL = none)
     // fit speed-up (false = off, the FMU's exact step sequence): with an input, integrate on through
     // the samples where the input's pieces join (InputJoin) instead of restarting the integrator at
-    // every sample as an importer's fmi2SetReal does; a piece that jumps still restarts it
+    // every sample as an importer's fmi2SetReal does (a piece that jumps still restarts it); not
+    // periodic: the integrator follows the pieces by time and its steps pass the samples, which are
+    // read off its interpolant. Not with the Kawabata and Iwan laws (simulate.cpp says why)
     bool continuous_input = false;
     InputJoin join;
 };
