@@ -16,7 +16,10 @@ measured in the same run, so that figures from a loaded machine compare as ratio
 one, in alternating order, with wall and CPU times of both; then both fit every bundled record
 (reference_results/*: the model that generated it; datasets/boucwen/train_multisine:
 linear+boucwen) and the fitted parameter files are compared: the same values to 1e-6 relative,
-and whether they are the same bits (the check of a change meant to leave results as they were).
+and whether they are the same bits (the check of a change meant to leave results as they were);
+else whether every value of this one lies inside the baseline's 95 % interval, and how far it
+moved in half widths of that interval (the check of a change meant to move results within the
+integration tolerance).
 """
 from __future__ import annotations
 
@@ -96,6 +99,28 @@ def _agree(a: dict, b: dict, rel: float = 1e-6) -> tuple[bool, bool]:
     return close, a["parameters"] == b["parameters"] and a["rms"] == b["rms"]
 
 
+def _moves(a: dict, b: dict) -> tuple[bool, float, float]:
+    """(every fitted value of ``b`` inside ``a``'s 95 % interval, the largest move of a fitted value
+    in units of the half width of a's interval, the RMS's relative change): the check of a change
+    meant to move results within the integration tolerance. A value without an interval (not fitted)
+    must be the same."""
+    inside, worst = True, 0.0
+    for k, va in a["parameters"].items():
+        vb = b["parameters"].get(k)
+        lo_hi = (a.get("intervals") or {}).get(k)
+        if vb is None:
+            return False, float("inf"), float("inf")
+        if lo_hi is None:
+            inside &= va == vb
+            continue
+        lo, hi = lo_hi
+        inside &= lo <= vb <= hi
+        half = 0.5 * (hi - lo)
+        if vb != va:
+            worst = max(worst, abs(vb - va) / half if half > 0 else float("inf"))
+    return inside, worst, abs(b["rms"] - a["rms"]) / a["rms"]
+
+
 def compare(stem: Path, out: Path, tether: str, baseline: str, runs: int, yard: float) -> int:
     """tether fit against the baseline's: times, then the bundled records' results."""
     got = {"baseline": [], "this": []}
@@ -109,18 +134,22 @@ def compare(stem: Path, out: Path, tether: str, baseline: str, runs: int, yard: 
     for k, (w, c) in med.items():
         print(f"{k:8s}: median {w:.2f} s wall ({w / yard:.0f} yardsticks), {c:.2f} s CPU")
     print(f"this / baseline: wall {med['this'][0] / med['baseline'][0]:.2f}, CPU {med['this'][1] / med['baseline'][1]:.2f}")
-    same = 0
+    same = inside = 0
     records = bundled_records()
-    print(f"\n`tether fit` of the {len(records)} bundled records, baseline and this:")
+    print(f"\n`tether fit` of the {len(records)} bundled records, baseline and this (CPU seconds; a fitted "
+          "value's move in half widths of the baseline's 95 % interval):")
     for rec, model in records:
-        tb, db, _ = run_cli(rec, out / f"{rec.name}.baseline.json", baseline, model)
-        tt, dt, _ = run_cli(rec, out / f"{rec.name}.this.json", tether, model)
+        tb, db, cb = run_cli(rec, out / f"{rec.name}.baseline.json", baseline, model)
+        tt, dt, ct = run_cli(rec, out / f"{rec.name}.this.json", tether, model)
         close, bits = _agree(db, dt)
+        within, worst, rms_move = _moves(db, dt)
         same += close
-        print(f"{rec.name:28s} {model:18s} RMS {db['rms']:.6g} -> {dt['rms']:.6g}  {tb:6.1f} s -> {tt:6.1f} s  "
-              f"{'same bits' if bits else 'equal to 1e-6' if close else 'DIFFERENT'}", flush=True)
-    print(f"results the same on {same} of {len(records)}")
-    return 0 if same == len(records) else 1
+        inside += within
+        verdict = "same bits" if bits else "equal to 1e-6" if close else "within the intervals" if within else "OUTSIDE"
+        print(f"{rec.name:28s} {model:18s} RMS {db['rms']:.6g} -> {dt['rms']:.6g} ({rms_move:.1e})  "
+              f"CPU {cb:6.1f} -> {ct:6.1f} s ({ct / cb:.2f})  largest move {worst:.2g}  {verdict}", flush=True)
+    print(f"results the same (1e-6) on {same} of {len(records)}; within the baseline's intervals on {inside}")
+    return 0 if inside == len(records) else 1
 
 
 def profile(stem: Path, path: Path) -> None:

@@ -397,6 +397,7 @@ void kt_fit_default_options(kt_fit_options *o)
     o->verbose = 0;
     o->progress = nullptr;
     o->progress_ctx = nullptr;
+    o->continuous_input = 1;
 }
 
 int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const *names, const double *lower,
@@ -439,6 +440,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
                 return -1;
             }
             P.exps[(std::size_t)i].stride = std::max(1, o.output_stride);
+            P.exps[(std::size_t)i].continuous_input = o.continuous_input != 0;
             P.exps[(std::size_t)i].limits = P.limits;
             P.n_res += experiments[i].n;
         }

@@ -27,7 +27,7 @@ extern "C" {
 #define KT_API
 #endif
 
-#define KT_IDENTIFY_API_VERSION 5
+#define KT_IDENTIFY_API_VERSION 6
 
 /* ---- parameter table ------------------------------------------------------------------------ */
 #define KT_PAR_REAL 0   /* a Real parameter: a double field of tether_params */
@@ -155,6 +155,17 @@ typedef struct {
     double deadline_thread_cpu; /* CLOCK_THREAD_CPUTIME_ID of the thread calling kt_fit: with
                                    n_threads = 1 the fit's own CPU time, whatever else the process
                                    runs beside it (fits side by side on several threads) */
+    int continuous_input;    /* speed-up for experiments with an input (forced, load and creep tests):
+                                1 (default) = where the input's next piece starts where the last one
+                                arrived (the force's value; the load's value and rate; to 1e-9 of
+                                the record's largest), the integrator goes on without a restart; a
+                                record that is not periodic gives the integrator its input piece by
+                                piece as time goes, lets its steps pass the samples and reads them
+                                off its interpolant. Within the integration tolerance of the FMU's
+                                trajectory. Not with the Kawabata and Iwan laws (their reversal
+                                memory takes the switches the FMU makes at every sample). 0 =
+                                restart the integrator at every sample, as the FMU does when an
+                                importer sets the input (kt_simulate's exact step sequence) */
 } kt_fit_options;
 
 KT_API void kt_fit_default_options(kt_fit_options *o);

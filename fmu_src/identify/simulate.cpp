@@ -176,6 +176,12 @@ bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prep
         if (idx < 0) { err = std::string("setting '") + (e.setting_names[i] ? e.setting_names[i] : "(null)") + "': no such parameter"; return false; }
         if (!set_parameter(p.base, idx, e.setting_values[i], err)) return false;
     }
+    p.join = InputJoin();
+    if (e.input_kind != KT_INPUT_NONE)
+        for (int k = 0; k < e.n; ++k) {
+            p.join.value_scale = std::max(p.join.value_scale, std::fabs(e.input[k]));
+            if (e.input_der) p.join.rate_scale = std::max(p.join.rate_scale, std::fabs(e.input_der[3 * k]));
+        }
     p.outputs.clear();
     std::size_t measured_off;
     if (!output_offset(e.output, measured_off)) { err = std::string("output '") + e.output + "': not a Real output or local variable"; return false; }
@@ -218,6 +224,50 @@ bool set_input(tether_model &M, const Measurement &meas, const kt_experiment &e,
     return changed;
 }
 
+// Does input piece k (from t on) carry on piece k_prev (from t_prev on) where it starts: what the
+// model's equations see of the input (the force's value; the load's value and rate, which the load
+// rig's equations see) the same to InputJoin::tolerance? Then the integrator need not restart there.
+bool pieces_join(const kt_experiment &e, const Measurement &meas, const InputJoin &join, int k_prev, double t_prev,
+                 int k, double t)
+{
+    const double g = meas.input_gain, h = t - t_prev;
+    const double *d = e.input_der ? e.input_der + 3 * k_prev : nullptr;
+    const double d1 = d ? g * d[0] : 0.0, d2 = d ? g * d[1] : 0.0, d3 = d ? g * d[2] : 0.0;
+    const double reached = g * e.input[k_prev] + meas.offset_input + h * (d1 + h * (d2 / 2.0 + h * d3 / 6.0));
+    const double value_tol = InputJoin::tolerance * (std::fabs(g) * join.value_scale + std::fabs(meas.offset_input));
+    if (!(std::fabs(g * e.input[k] + meas.offset_input - reached) <= value_tol)) return false;
+    if (e.input_kind != KT_INPUT_LOAD) return true;
+    const double rate = d1 + h * (d2 + h * d3 / 2.0), rate_new = e.input_der ? g * e.input_der[3 * k] : 0.0;
+    return std::fabs(rate_new - rate) <= InputJoin::tolerance * std::fabs(g) * join.rate_scale;
+}
+
+// The input piece by piece as time goes (integrator_set_input): piece k, from time[k] on, for
+// time[k] <= t < time[k + 1] (the last sample's from there on), but never beyond piece `last`: the
+// integrator runs up to a sample where the pieces do not join on the piece before it, as the FMU
+// does. Pieces are looked up from the last one used.
+struct InputPieces {
+    const kt_experiment *e;
+    const Measurement *meas;
+    int last = 0;
+    int k = -1;
+
+    int piece_at(double t) const
+    {
+        int j = std::max(k, 0);
+        while (j + 1 < e->n && t >= e->time[j + 1]) ++j;
+        while (j > 0 && t < e->time[j]) --j;
+        return std::min(j, last);
+    }
+    void select(double t, tether_model &M)
+    {
+        const int j = piece_at(t);
+        if (j == k) return;
+        k = j;
+        set_input(M, *meas, *e, j, e->time[j]);
+    }
+    static void follow(void *ctx, double t, tether_model *M) { static_cast<InputPieces *>(ctx)->select(t, *M); }
+};
+
 } // namespace
 
 static double clock_seconds(clockid_t id)
@@ -257,6 +307,11 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     const int n = e.n;
     const int P = e.periodic_samples;
     const bool has_input = e.input_kind != KT_INPUT_NONE;
+    // Prepared::continuous_input, but not with the Kawabata and Iwan laws: their reversal memory
+    // takes the switches the FMU makes at the samples, where a load that returns to an earlier
+    // turning point decides between rejoining its branch and reversing by a hair
+    const bool carry_on = has_input && p.continuous_input && M.p.hysteresis != HYSTERESIS_KAWABATA &&
+                          M.p.hysteresis != HYSTERESIS_IWAN;
     const std::size_t n_out = p.outputs.size();
     char msg[1024];
     double y[TETHER_NUMBER_OF_STATES];
@@ -288,7 +343,12 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     // one step: the inputs of sample s, the outputs there, then fmi2DoStep to sample s + 1
     auto step = [&](double *o, bool last) -> bool {
         if (over_time(16)) return false;
-        if (s > 0 && has_input && set_input(M, meas, e, input_index(s), t)) needs_reset = true;
+        bool joined = false; // the input changed here, but its pieces join (Prepared::continuous_input)
+        if (s > 0 && has_input && set_input(M, meas, e, input_index(s), t)) {
+            joined = carry_on &&
+                     pieces_join(e, meas, p.join, input_index(s - 1), sample_time(s - 1), input_index(s), t);
+            needs_reset = !joined;
+        }
         if (o) {
             tether_outputs to;
             tether_compute_outputs(&M, t, y, &to);
@@ -296,6 +356,8 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
             for (std::size_t j = 0; j < n_out; ++j) std::memcpy(o + j, base + p.outputs[j], sizeof(double));
         }
         if (last) return true;
+        // the switches the FMU makes where its input is set, but a restart only where one is made
+        if (joined && tether_event_update(&M, t, y, msg, sizeof msg) > 0) needs_reset = true;
         if (needs_reset) {
             tether_event_update(&M, t, y, msg, sizeof msg);
             if (integrator_reset(G.I, t, y) != 0) { err = std::string("could not restart CVODE: ") + integrator_error(G.I); return false; }
@@ -377,6 +439,55 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
         }
         if (first_record_sample == P && n == P) return true;
     }
+    auto outputs_at = [&](double tt, const double *yy, double *o) {
+        tether_outputs to;
+        tether_compute_outputs(&M, tt, yy, &to);
+        const char *base = reinterpret_cast<const char *>(&to);
+        for (std::size_t j = 0; j < n_out; ++j) std::memcpy(o + j, base + p.outputs[j], sizeof(double));
+    };
+    auto reset = [&]() -> bool {
+        if (integrator_reset(G.I, t, y) == 0) return true;
+        err = std::string("could not restart CVODE: ") + integrator_error(G.I);
+        return false;
+    };
+    auto advance = [&](double t_end, double t_stop) -> bool {
+        double t_reached = t;
+        if (integrator_advance_within(G.I, t_end, t_stop, &t_reached, y) == 0) return true;
+        char b[1200];
+        std::snprintf(b, sizeof b, "the step from %.17g s to %.17g s stopped at %.17g s: %s", t, t_end, t_reached,
+                      integrator_error(G.I));
+        err = b;
+        return false;
+    };
+    if (P == 0 && carry_on) {
+        // the input's pieces followed by time inside the integrator, which restarts only where they
+        // do not join or a switch is made; the samples between are read off its interpolant
+        InputPieces pieces{&e, &meas};
+        integrator_set_input(G.I, InputPieces::follow, &pieces);
+        int k = 0;
+        while (k < n - 1) {
+            int b = k + 1; // the next sample where the pieces do not join (or the last)
+            while (b < n - 1 && pieces_join(e, meas, p.join, b - 1, e.time[b - 1], b, e.time[b])) ++b;
+            pieces.last = b - 1;
+            for (int j = k; j < b; ++j) {
+                if (over_time(16)) return false;
+                pieces.select(t, M);
+                outputs_at(t, y, out + (std::size_t)j * n_out);
+                // the switches the FMU makes where its input is set; a restart where the pieces do
+                // not join, or where a switch is made (from the interpolant's states there)
+                const int switches = tether_event_update(&M, t, y, msg, sizeof msg);
+                if ((j == k || switches > 0) && !reset()) return false;
+                if (!advance(e.time[j + 1], e.time[b])) return false;
+                t = e.time[j + 1];
+                tether_check_range(&M, t, y, msg, sizeof msg);
+            }
+            k = b;
+        }
+        pieces.last = n - 1;
+        pieces.select(t, M);
+        outputs_at(t, y, out + (std::size_t)(n - 1) * n_out);
+        return true;
+    }
     const int stride = (P == 0 && !has_input) ? std::max(1, p.stride) : 1;
     if (stride == 1) {
         for (int k = first_record_sample; k < n; ++k)
@@ -384,12 +495,6 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
         return true;
     }
     // fast mode: one integrator call per chunk of samples, Hermite interpolation inside
-    auto outputs_at = [&](double tt, const double *yy, double *o) {
-        tether_outputs to;
-        tether_compute_outputs(&M, tt, yy, &to);
-        const char *base = reinterpret_cast<const char *>(&to);
-        for (std::size_t j = 0; j < n_out; ++j) std::memcpy(o + j, base + p.outputs[j], sizeof(double));
-    };
     constexpr int NS = TETHER_NUMBER_OF_STATES;
     int k = 0;
     while (k < n - 1) {

@@ -35,6 +35,8 @@ struct tether_integrator {
     double t;
     integrator_log_fn log;
     void *log_ctx;
+    integrator_input_fn input; /* NULL: the model's inputs stay as set */
+    void *input_ctx;
     long events, resets;
     long runaway_refusals; /* rhs calls refused as a runaway within this advance */
     char error[512];
@@ -54,6 +56,7 @@ double integrator_local_tolerance(double rtol)
 static int rhs(realtype t, N_Vector y, N_Vector ydot, void *user)
 {
     tether_integrator *I = (tether_integrator *)user;
+    if (I->input) I->input(I->input_ctx, t, I->M);
     if (tether_runaway(I->M, t, NV_DATA_S(y), I->error, sizeof I->error)) {
         I->runaway_refusals += 1;
         return -1; /* stop now */
@@ -67,6 +70,7 @@ static int rhs(realtype t, N_Vector y, N_Vector ydot, void *user)
 static int roots(realtype t, N_Vector y, realtype *g, void *user)
 {
     const tether_integrator *I = (const tether_integrator *)user;
+    if (I->input) I->input(I->input_ctx, t, I->M);
     tether_event_indicators(I->M, t, NV_DATA_S(y), g);
     return I->runaway_refusals >= RUNAWAY_REFUSALS_TO_STOP ? -1 : 0; /* -1: CVode returns at once */
 }
@@ -142,7 +146,18 @@ int integrator_reset(tether_integrator *I, double t, const double *y)
     return 0;
 }
 
+void integrator_set_input(tether_integrator *I, integrator_input_fn input, void *ctx)
+{
+    I->input = input;
+    I->input_ctx = ctx;
+}
+
 int integrator_advance(tether_integrator *I, double t_end, double *t_reached, double *y)
+{
+    return integrator_advance_within(I, t_end, t_end, t_reached, y);
+}
+
+int integrator_advance_within(tether_integrator *I, double t_end, double t_stop, double *t_reached, double *y)
 {
     long events = 0, steps = 0;
     I->error[0] = '\0';
@@ -154,7 +169,7 @@ int integrator_advance(tether_integrator *I, double t_end, double *t_reached, do
             break;
         }
         realtype tret = I->t;
-        CVodeSetStopTime(I->cvode, t_end);
+        CVodeSetStopTime(I->cvode, t_stop);
         long before = 0, after = 0;
         CVodeGetNumSteps(I->cvode, &before);
         CVodeSetMaxNumSteps(I->cvode, INTEGRATOR_MAX_STEPS - steps); /* what is left of the budget, >= 1 */
@@ -168,6 +183,7 @@ int integrator_advance(tether_integrator *I, double t_end, double *t_reached, do
         if (flag == CV_ROOT_RETURN) {
             I->t = tret;
             char note[1024];
+            if (I->input) I->input(I->input_ctx, tret, I->M);
             const int switches = tether_event_update(I->M, tret, NV_DATA_S(I->y), note, sizeof note);
             if (switches > 0) {
                 if (I->log) I->log(I->log_ctx, note);
@@ -194,7 +210,7 @@ int integrator_advance(tether_integrator *I, double t_end, double *t_reached, do
             *t_reached = I->t;
             return -1;
         }
-        I->t = t_end; /* CV_SUCCESS or CV_TSTOP_RETURN: tret == t_end */
+        I->t = t_end; /* CV_SUCCESS (at or interpolated back to t_end) or CV_TSTOP_RETURN: tret == t_end */
     }
     memcpy(y, NV_DATA_S(I->y), sizeof(double) * N_STATES);
     *t_reached = I->t;

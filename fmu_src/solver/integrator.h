@@ -36,6 +36,18 @@ int integrator_reset(tether_integrator *I, double t, const double *y);
  * solution was good, y the states at that time, and a message in integrator_error(I). */
 int integrator_advance(tether_integrator *I, double t_end, double *t_reached, double *y);
 
+/* The same, with CVODE's steps bounded by t_stop >= t_end instead of t_end: its steps may pass
+ * t_end, and y is its interpolant there (the stepping goes on from where it is at the next call).
+ * For outputs between the points where the inputs change (a batch simulation whose inputs follow
+ * the time through integrator_set_input); t_stop must not be before t_end. */
+int integrator_advance_within(tether_integrator *I, double t_end, double t_stop, double *t_reached, double *y);
+
+/* Inputs that follow the time: `input(ctx, t, M)` sets M's inputs for the time t before every
+ * evaluation of the model's equations and event indicators, and before an event's switches (NULL,
+ * the default: the inputs stay as the caller set them, e.g. an FMU's importer). */
+typedef void (*integrator_input_fn)(void *ctx, double t, tether_model *M);
+void integrator_set_input(tether_integrator *I, integrator_input_fn input, void *ctx);
+
 const char *integrator_error(const tether_integrator *I);
 
 /* Work counters, for benchmarks and logs. */
