@@ -31,7 +31,7 @@ ACTS_IN = {"free_vibration": ("nonlinear_stiffness", "hysteresis", "nonlinear_da
            "creep": ("nonlinear_stiffness", "hysteresis", "creep")}
 
 #: the small records of the campaign: rates and programs that keep each to hundreds to ~2,000 samples
-SMALL = {"free_vibration": {"rate": 100.0},
+SMALL = {"free_vibration": {"rate": 100.0, "duration_s": 8.0},
          "load_unload": {"rate": 5.0},
          "creep": {"rate": 0.1, "creep_program": [[100.0, 2.0], [5.0, 1.5]]}}
 

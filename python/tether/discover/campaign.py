@@ -363,16 +363,17 @@ class Campaign:
         nuisance values of the model it extends may carry what the new effect explains (a free
         vibration's release point bent by a law without slack: held there, a joint fit with slack
         stopped at 1,100 x noise where the record alone reached 1.0 x). Then the shared law to all
-        records from the lead's law and from the campaign's data-based estimate, the lead's nuisance
-        at its own fit's values; then once the records' nuisance refitted and the law again."""
+        records from the lead's law (where the lead's fit fails: from the current law and from the
+        campaign's data-based estimate), the lead's nuisance at its own fit's values; then once the
+        records' nuisance refitted and the law again."""
         r = self.records[lead]
         alone = fit_model(r.trace, spec.for_experiment(r.trace.experiment), effects, starts, r.sc,
                           nuisance=r.nuisance, time_cap=self.cap, own_thread=own_thread, deadline=self.deadline)
         nzs = [dict(x.nz) for x in self.records]
-        joint_starts: list = [None]
+        joint_starts: list = [self.cur.params, None]
         if alone.ok:
             nzs[lead] = dict(alone.nuisance)
-            joint_starts.insert(0, {**self.cur.params, **_law_only(alone.params, spec)})
+            joint_starts = [{**self.cur.params, **_law_only(alone.params, spec)}]
         f = self.fit(spec, effects, joint_starts, nzs=nzs, own_thread=own_thread)
         if not f.ok or self.budget_hit:
             return f

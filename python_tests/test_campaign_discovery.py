@@ -1,0 +1,155 @@
+"""Discovery over a test campaign (issue 29; tether.discover.campaign): several records of one
+tether from the project's generator (campaign_records over hidden_effects), one model for all."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import campaign_records as cr
+from tether.discover.campaign import _baked, CampaignInputError, check_campaign, discover_campaign
+from tether.discover.campaign_document import campaign_document
+from tether.discover.fitting import predict
+from tether.models import parse_model
+from tether.traces import read_trace
+
+# a tether with creep; its free vibration released high enough to go slack: slack shows only in
+# the free vibration, creep only in the load tests (the generator's seed 11 tether)
+SPLIT_SEED = 11
+SPLIT_EFFECTS = {"creep", "slack"}
+
+
+@pytest.fixture(scope="module")
+def split_campaign(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("split")
+    recs, effects, _ = cr.campaign(SPLIT_SEED, effects=SPLIT_EFFECTS)
+    stems = cr.write_campaign(recs, folder)
+    traces = [read_trace(s) for s in stems]
+    lines = []
+    d = discover_campaign(traces, progress=lines.append)
+    return recs, traces, d, campaign_document(d), lines
+
+
+def test_campaign_records_are_small_and_split():
+    """The generator's campaign: three experiments of one tether, hundreds to ~2,000 samples
+    each, its effects split between them (slack only in the free vibration, creep only in the
+    load tests)."""
+    recs, effects, material = cr.campaign(SPLIT_SEED, effects=SPLIT_EFFECTS)
+    assert [r.experiment for r in recs] == ["free_vibration", "load_unload", "creep"]
+    assert all(100 <= len(r.time) <= 2500 for r in recs), [len(r.time) for r in recs]
+    assert {r.meta["hidden"]["params"]["EA_N"] for r in recs} == {material["EA_N"]}
+    assert recs[0].revealed == {"slack"}
+    assert "creep" in recs[2].revealed and "slack" not in recs[1].revealed | recs[2].revealed
+    assert cr.hidden_union(recs) == SPLIT_EFFECTS
+
+
+def test_campaign_names_the_union_and_who_revealed_it(split_campaign):
+    recs, traces, d, doc, lines = split_campaign
+    assert set(doc["added_effects"]) == cr.hidden_union(recs)
+    for r in doc["records"]:
+        assert r["rmse_final"] <= 1.5 * r["noise_estimate"], (r["name"], r["rmse_final_over_noise"])
+    by_name = {r["name"]: r for r in doc["records"]}
+    fv, lu, creep = (t.name for t in traces)
+    # the record that can show an effect revealed it; the ones that cannot call it undetermined
+    assert "slack" in by_name[fv]["revealed"]
+    assert "creep" in by_name[creep]["revealed"] or "creep" in by_name[lu]["revealed"]
+    assert by_name[lu]["effects"]["slack"]["verdict"] == "undetermined"
+    assert by_name[creep]["effects"]["slack"]["verdict"] == "undetermined"
+    assert by_name[fv]["effects"]["creep"]["verdict"] == "undetermined"
+    assert doc["effects"]["slack"]["verdict"] == doc["effects"]["creep"]["verdict"] == "present"
+    assert doc["contradicting"] == []
+    # per step each record's error before and after: the revealing record's gap shrinks
+    for s in doc["steps"]:
+        if s["effect"]:
+            for x in s["records"]:
+                if x["revealed"]:
+                    assert x["rmse_after"] < x["rmse_before"]
+    assert any("noise" in ln for ln in lines)
+
+
+def test_campaign_document_is_a_params_file(split_campaign, tmp_path):
+    """final_params (and the top level) make OUT.json a --params file of the discovered model."""
+    from tether.models import read_params
+
+    _, _, d, doc, _ = split_campaign
+    p = tmp_path / "out.json"
+    p.write_text(json.dumps(doc))
+    pf = read_params(p)
+    assert parse_model(pf.model).canonical == d.final.model
+    assert pf.parameters == pytest.approx(d.final.params)
+
+
+def test_a_record_of_another_tether_is_flagged_by_name(tmp_path):
+    """Two records of one tether and a load test of another (60 % stiffer): the odd record is named."""
+    recs, _, material = cr.campaign(5, effects=set(), experiments=("free_vibration", "load_unload"))
+    odd = cr.record("load_unload", set(), {**material, "EA_N": 1.6 * material["EA_N"]}, 77)
+    stems = cr.write_campaign(recs + [odd], tmp_path)
+    traces = [read_trace(s) for s in stems]
+    lines = []
+    d = discover_campaign(traces, progress=lines.append)
+    assert [c["name"] for c in d.contradicting] == [traces[2].name], d.contradicting
+    c = d.contradicting[0]
+    assert c["rmse_final_over_noise"] > 1.41 and c["rmse_alone_over_noise"] < c["rmse_final_over_noise"]
+    assert any(traces[2].name in ln and "CONTRADICTING" in ln for ln in lines)
+
+
+def test_baked_record_predicts_as_its_nuisance_values(tmp_path):
+    """A record with its nuisance values baked in predicts, with the law alone, what the record
+    predicts with the law and the nuisance values (the engine's own account of them)."""
+    rec = cr.record("free_vibration", set(), cr.tether_material(3), 3)
+    rec.write(tmp_path, "fv")
+    tr = read_trace(tmp_path / "fv")
+    spec = parse_model("linear").for_experiment(tr.experiment)
+    law = {"EA": rec.meta["hidden"]["params"]["EA_N"], "c0": 2.0}
+    nz = {"offset_measured": 3e-3, "x0": float(tr.initial_displacement_m) * 0.8}
+    y_engine = predict(tr, spec, {**law, **nz})
+    y_baked = predict(_baked(tr, nz), spec, law) + nz["offset_measured"]
+    assert np.max(np.abs(y_engine - y_baked)) <= 1e-9 * np.max(np.abs(y_engine))
+    assert np.max(np.abs(y_engine - predict(tr, spec, law))) > 1e-3     # the values do act
+
+
+def test_a_record_given_twice_is_refused(tmp_path):
+    rec = cr.record("load_unload", set(), cr.tether_material(3), 3)
+    rec.write(tmp_path, "lu")
+    tr = read_trace(tmp_path / "lu")
+    with pytest.raises(CampaignInputError, match="lu.csv: the record is given twice"):
+        check_campaign([tr, read_trace(tmp_path / "lu.json")])
+
+
+def _linear_pair(folder: Path) -> list[Path]:
+    recs, _, _ = cr.campaign(4, effects=set(), experiments=("load_unload", "creep"))
+    return cr.write_campaign(recs, folder)
+
+
+def test_cli_campaign_writes_records(run_cli, tmp_path):
+    stems = _linear_pair(tmp_path)
+    out = tmp_path / "OUT.json"
+    status, stdout, stderr = run_cli("discover", *stems, "--json", out, "--report", tmp_path / "rep")
+    assert status == 0, stderr
+    doc = json.loads(out.read_text())
+    assert [r["name"] for r in doc["records"]] == [s.name for s in stems]
+    for r in doc["records"]:
+        for k in ("trace", "experiment", "noise_estimate", "rmse_initial", "rmse_final", "steps", "effects"):
+            assert k in r
+        assert r["rmse_final"] <= 1.5 * r["noise_estimate"]
+    assert doc["added_effects"] == [] and doc["contradicting"] == []
+    assert (tmp_path / "rep" / "index.html").is_file()
+    assert "campaign of 2 records" in stdout
+
+
+@pytest.mark.parametrize("bad", ["missing", "twice"])
+def test_cli_campaign_bad_input_exits_2_naming_the_file(run_cli, tmp_path, bad):
+    stems = _linear_pair(tmp_path)
+    out = tmp_path / "OUT.json"
+    if bad == "missing":
+        args, name = [stems[0], tmp_path / "nope"], "nope"
+    else:
+        args, name = [stems[0], stems[1], stems[0]], stems[0].name
+    status, stdout, stderr = run_cli("discover", *args, "--json", out)
+    assert status == 2, stderr
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and name in lines[0], stderr
+    assert not out.exists()
