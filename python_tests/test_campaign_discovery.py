@@ -89,6 +89,22 @@ def test_campaign_document_is_a_params_file(split_campaign, tmp_path):
     assert pf.parameters == pytest.approx(d.final.params)
 
 
+def test_campaign_report_tells_each_step_and_who_revealed_it(split_campaign, tmp_path):
+    """DIR/index.html: one figure per step with a panel per record, the table of who revealed what."""
+    from tether.campaign_report import write_campaign_report
+
+    _, traces, d, doc, _ = split_campaign
+    write_campaign_report(tmp_path, d, doc)
+    page = (tmp_path / "index.html").read_text()
+    added = [s for s in d.steps if s.effect]
+    assert all((tmp_path / f"step{k}.png").is_file() for k in range(len(added) + 1))
+    assert "Which record revealed what" in page
+    for s in added:
+        assert f"<b>{s.effect}</b>" in page
+    assert page.count("<b>revealed</b>") == sum(len(s.revealed_by) for s in added)
+    assert json.loads((tmp_path / "discovery.json").read_text())["added_effects"] == doc["added_effects"]
+
+
 def test_a_record_of_another_tether_is_flagged_by_name(tmp_path):
     """Two records of one tether and a load test of another (60 % stiffer): the odd record is named."""
     recs, _, material = cr.campaign(5, effects=set(), experiments=("free_vibration", "load_unload"))

@@ -623,14 +623,21 @@ class Campaign:
         return own, ok, why
 
     def rest_consistent(self, i: int) -> CampaignFit | None:
-        """The final model fitted to every record but ``i``; the fit where it reproduces each of
+        """The final model fitted to every record but ``i`` (the law and the nuisance in turn, as
+        settle does; the records' own values restored after); the fit where it reproduces each of
         them without an unexplained gap (CRITERIA.unexplained_gap), else None."""
         keep = [j for j in range(len(self.records)) if j != i]
-        nzs = [self.cur.nz[j] for j in keep]
         with self.only(keep):
-            rest = self.fit(self.cur.spec, self.cur.effects, [self.cur.params], nzs=nzs, max_iterations=30)
-            good = rest.ok and all(_gap(e, r.sigma) < CRITERIA.unexplained_gap * r.sigma
-                                   for e, r in zip(rest.rms_records, self.records))
+            saved = [dict(r.nz) for r in self.records]
+            try:
+                rest = self.fit(self.cur.spec, self.cur.effects, [self.cur.params], max_iterations=30)
+                if rest.ok:
+                    rest = self.settle(rest)   # the nuisance values the compromise bent, fitted again
+                good = rest.ok and all(_gap(e, r.sigma) < CRITERIA.unexplained_gap * r.sigma
+                                       for e, r in zip(rest.rms_records, self.records))
+            finally:
+                for r, nz in zip(self.records, saved):
+                    r.nz = nz
         return rest if good else None
 
     def contradictions(self) -> tuple[list, dict]:
