@@ -229,7 +229,7 @@ class Campaign:
         noise = estimate_noise(trace)
         if not noise.sigma > 0:
             raise CampaignInputError(f"{trace.csv_path}: the measured column shows no noise (a noise-free record): "
-                                 "there is no scale to judge a gap against")
+                                     "there is no scale to judge a gap against")
         part = _truncated(trace, CRITERIA.fit_part)
         nuisance = tuple(nuisance_parameters(trace)) if free_nuisance else ()
         self.say(f"{trace.name} ({trace.experiment}, {len(trace.time)} samples): noise {noise.sigma:.3g} m "
@@ -306,6 +306,12 @@ class Campaign:
             fixed = {k: float(start[k]) for k in fixed_keys if start and k in start}
             return self.engine_fit(traces, spec, names, st, fixed, iterations, cap, own_thread)
 
+        def z(res) -> float:
+            """The fit's error in noise units (fit_traces' rms is the plain one over all samples)."""
+            n = [len(t.time) for t in traces]
+            return math.sqrt(sum(k * (e / r.sigma) ** 2 for k, e, r in zip(n, res.rms_per_trace, self.records))
+                             / sum(n))
+
         cap = None if self.cap is None else self.cap
         best, best_start, msg = None, None, ""
         if len(starts) > 1:
@@ -314,11 +320,11 @@ class Campaign:
                 if r is None:
                     msg = m
                     continue
-                if best is None or r.rms < best.rms:
+                if best is None or z(r) < z(best):
                     best, best_start = r, s
             if best is not None:
                 r, m = one(best_start, max_iterations, None if cap is None else 2 * cap)
-                if r is not None and r.rms <= best.rms:
+                if r is not None and z(r) <= z(best):
                     best = r
         else:
             best, msg = one(starts[0], max_iterations, None if cap is None else 2 * cap)
