@@ -50,21 +50,31 @@ def tether_material(seed: int) -> dict:
     return {k: P[k] for k in MATERIAL}
 
 
-def record(experiment: str, tether_effects, material: dict, seed: int, **overrides):
-    """One record of the tether: its experiment with the tether's effects that act in it."""
+#: the tests' records: lower rates and shorter programs than SMALL (tens to hundreds of samples),
+#: which keep a campaign's discovery within a minute of CPU
+TINY = {"free_vibration": {"rate": 50.0, "duration_s": 6.0},
+        "load_unload": {"rate": 2.0},
+        "creep": {"rate": 0.05, "creep_program": [[100.0, 2.0], [5.0, 1.5]]}}
+
+
+def record(experiment: str, tether_effects, material: dict, seed: int, sizes: dict | None = None, **overrides):
+    """One record of the tether: its experiment with the tether's effects that act in it, at the
+    rate and program ``sizes`` gives it (default SMALL)."""
     effects = {e for e in tether_effects if e in ACTS_IN[experiment]}
-    kw = {**SMALL[experiment], **material, **overrides}
+    kw = {**(SMALL if sizes is None else sizes)[experiment], **material, **overrides}
     return he.generate(experiment, effects, seed, **kw)
 
 
-def campaign(seed: int, effects=None, experiments=("free_vibration", "load_unload", "creep"), **material_changes):
+def campaign(seed: int, effects=None, experiments=("free_vibration", "load_unload", "creep"), sizes: dict | None = None,
+             **material_changes):
     """(records, tether effects, material) of one campaign: the effects drawn from EFFECT_SETS by
-    ``seed`` unless given; ``material_changes`` alter the tether's material (e.g. EA_N)."""
+    ``seed`` unless given; ``sizes``: the records' rates and programs (default SMALL);
+    ``material_changes`` alter the tether's material (e.g. EA_N)."""
     rng = np.random.default_rng(int(seed) + 7919)
     if effects is None:
         effects = EFFECT_SETS[int(rng.integers(len(EFFECT_SETS)))]
     material = {**tether_material(seed), **material_changes}
-    recs = [record(x, effects, material, 1000 * int(seed) + i) for i, x in enumerate(experiments)]
+    recs = [record(x, effects, material, 1000 * int(seed) + i, sizes) for i, x in enumerate(experiments)]
     return recs, set(effects), material
 
 

@@ -81,6 +81,8 @@ def campaign_page(doc: dict, images: list) -> str:
         f"{esc(r['experiment'])}</td><td>{r['samples']}</td><td>{r['noise_estimate']:.3g}</td>"
         f"<td>{r['rmse_initial_over_noise']:.2f}</td><td>{r['rmse_final_over_noise']:.2f}</td>"
         f"<td class=l>{esc(', '.join(r['revealed']) or '–')}</td></tr>" for r in doc["records"])
+    removed = "".join(f"<p>Removed <b>{esc(x['effect'])}</b> ({esc(x['model_before'])} → {esc(x['model_after'])}): "
+                      f"{esc(x['reason'])}</p>" for x in doc.get("removals", []))
     contra = "".join(f"<p class=bad><b>{esc(c['name'])} contradicts the other records</b>: {esc(c['why'])}</p>"
                      for c in doc["contradicting"])
     figs = "".join(f"<h3>{esc(title)}</h3><img src='{esc(img)}' alt='{esc(title)}'>" for title, img in images)
@@ -98,6 +100,7 @@ def campaign_page(doc: dict, images: list) -> str:
 <p>Each record's RMS error over its own noise before → after the step; <i>revealed</i>: the effect earns its
 place on that record alone by the one-record rule.</p>
 <table><tr><th>step</th><th>effect</th>{head}<th>how</th></tr>{''.join(table)}</table>
+{removed}
 <h2>Every effect</h2>
 <table><tr><th>effect</th><th>campaign</th>{head}</tr>{verdicts}</table>
 <h2>The story, step by step</h2>{figs}

@@ -21,7 +21,8 @@ def _campaign_verdicts(d: CampaignDiscovery) -> dict:
     revealed it), absent (some record can reveal it and it did not earn its place) or undetermined
     (no record of the campaign can reveal it)."""
     out = {}
-    added = {s.effect: (k, s) for k, s in enumerate(d.steps, 1) if s.effect}
+    added = {s.effect: (k, s) for k, s in enumerate(d.steps, 1) if s.effect and s.effect in d.final.effects}
+    removed = {x.effect: x for x in d.removals if x.effect not in d.final.effects}
     for e in EFFECTS:
         why_not = {r.name: unrevealed(r.trace, e) for r in d.records}
         if e in d.final.effects and e not in added:
@@ -33,6 +34,8 @@ def _campaign_verdicts(d: CampaignDiscovery) -> dict:
                                    f"{s.rms_before:.2f} -> {s.rms_after:.2f} x noise; revealed by "
                                    f"{', '.join(s.revealed_by)} ({s.revealed_how})"),
                       "revealed_by": list(s.revealed_by)}
+        elif e in removed:
+            out[e] = {"verdict": "absent", "evidence": f"added, then removed: {removed[e].reason}"}
         elif all(why_not.values()):
             out[e] = {"verdict": "undetermined",
                       "evidence": "no record of the campaign can reveal it: " + "; ".join(
@@ -57,7 +60,7 @@ def _record_verdicts(d: CampaignDiscovery, i: int, campaign: dict) -> dict:
     out = {}
     for e, v in campaign.items():
         why = unrevealed(r.trace, e)
-        step = next(((k, s) for k, s in enumerate(d.steps, 1) if s.effect == e), None)
+        step = next(((k, s) for k, s in enumerate(d.steps, 1) if s.effect == e and e in d.final.effects), None)
         if why:
             out[e] = {"verdict": "undetermined", "campaign": v["verdict"], "evidence": f"this record cannot reveal it: {why}"}
         elif step is not None:
@@ -83,6 +86,8 @@ def campaign_document(d: CampaignDiscovery) -> dict:
             "rmse_before_over_noise": s.rms_before, "rmse_after_over_noise": s.rms_after,
             "revealed_by": s.revealed_by, "revealed_how": s.revealed_how,
             "evidence": win.verdict if win else None,
+            "retests": [{"effect": t.effect, "bic_change": t.bic_change, "kept": t.kept, "verdict": t.verdict}
+                        for t in s.retests],
             "records": [{"trace": r.name, "rmse_before": b, "rmse_after": a,
                          "rmse_before_over_noise": b / r.sigma, "rmse_after_over_noise": _over(a, r),
                          "revealed": r.name in s.revealed_by}
@@ -104,7 +109,8 @@ def campaign_document(d: CampaignDiscovery) -> dict:
             "steps": [{"effect": s.effect, "rmse_before": s.records_before[i],
                        "rmse_after": None if s.records_after is None else s.records_after[i],
                        "revealed": r.name in s.revealed_by} for s in d.steps if s.effect],
-            "revealed": [s.effect for s in d.steps if s.effect and r.name in s.revealed_by],
+            "revealed": [s.effect for s in d.steps if s.effect and r.name in s.revealed_by
+                         and s.effect in final.effects],
             "effects": _record_verdicts(d, i, campaign),
             "nuisance": {n: {"stated": v_stated, "value": float(final.nz[i][n])}
                          for n, v_stated in _stated(r).items() if n in final.nz[i]},
@@ -122,6 +128,9 @@ def campaign_document(d: CampaignDiscovery) -> dict:
         "rmse_final_over_noise": final.rms,
         "effects": campaign,
         "steps": steps,
+        "removals": [{"effect": x.effect, "model_before": x.model_before, "model_after": x.model_after,
+                      "rmse_before_over_noise": x.rms_before, "rmse_after_over_noise": x.rms_after, "reason": x.reason}
+                     for x in d.removals],
         "records": records,
         "contradicting": d.contradicting,
         "stop_reason": d.stop_reason,
@@ -147,6 +156,8 @@ def campaign_account(d: CampaignDiscovery) -> str:
     for k, s in enumerate([s for s in d.steps if s.effect], 1):
         lines.append(f"{k}. {s.effect}: campaign RMS error {s.rms_before:.2f} -> {s.rms_after:.2f} x noise (model "
                      f"{s.model_after}); revealed by {', '.join(s.revealed_by)}")
+    for x in d.removals:
+        lines.append(f"removed {x.effect}: {x.reason}")
     for c in d.contradicting:
         lines.append(f"contradicting record {c['name']}: {c['why']}")
     lines.append(f"stopped: {d.stop_reason}")
