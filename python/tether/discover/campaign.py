@@ -36,10 +36,11 @@ from ..noise import NoiseEstimate, estimate_noise
 from ..traces import Trace
 from .document import ordinal
 from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, _side_by_side, fit_model, predict
-from .judge import CRITERIA, _bic, _gap, _slack_acts, bic_change, full_data_verdict, heldout_verdict
-from .laws import HELD_AT_START, _models_for, _without, candidates, free_parameters, unrevealed
+from .judge import CRITERIA, _bic, _gap, _law_judged, _slack_acts, bic_change, full_data_verdict, heldout_verdict
+from .laws import HELD_AT_START, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates, free_parameters, unrevealed
 from .nuisance import nuisance_parameters, nuisance_start
-from .records import DiscoveryError, Removal, Retest
+from .records import DiscoveryError, Refinement, Removal, Retest
+from .rival import _wider_law_starts
 from .samples import SEARCH_SAMPLES, WHOLE_RECORD_ITERATIONS, _truncated, search_thinning, thinned
 from .scales import _Scales, _scales
 from .starts import _reduced_starts, candidate_starts
@@ -62,6 +63,7 @@ class Record:
     first: int
     sc: _Scales
     nz: dict = field(default_factory=dict)
+    alone: dict = field(default_factory=dict)   # the start model fitted to this record alone: law and nuisance
     whole: Trace | None = None     # the whole record where the search runs on every k-th sample
     every: int = 1                 # k (samples.search_thinning)
 
@@ -150,6 +152,7 @@ class CampaignDiscovery:
         return self.fits[-1]
 
     removals: list = field(default_factory=list)   # Removal: an effect a later one made redundant
+    refinements: list = field(default_factory=list)  # Refinement: a named effect's wider law tried at the end
 
     @property
     def added_effects(self) -> list:
@@ -227,6 +230,7 @@ class Campaign:
         self.n_nuisance = sum(len(r.nuisance) for r in self.records)
         self.steps: list[CampaignStep] = []
         self.removals: list[Removal] = []
+        self.refinements: list[Refinement] = []
         self.fits: list[CampaignFit] = []
         self.stop = ""
         self.cap: float | None = None
@@ -484,7 +488,7 @@ class Campaign:
     def run(self) -> CampaignDiscovery:
         self.fit_start()
         while len(self.steps) < self.max_steps and not self.budget_hit:
-            if all(e <= CRITERIA.within_noise * r.sigma for e, r in zip(self.cur.rms_records, self.records)):
+            if self.within_noise(self.cur):
                 self.stop = "every record is reproduced within the noise"
                 break
             if not self.step():
@@ -494,6 +498,8 @@ class Campaign:
                 self.stop = self.stop or f"the time budget of {self.budget:.0f} s was spent"
             elif not self.stop:
                 self.stop = f"the most steps ({self.max_steps}) were taken"
+        if not self.budget_hit:
+            self.wider_laws()
         if any(r.every > 1 for r in self.records):
             self.on_whole_records()
         contradicting, alone = self.contradictions()
@@ -501,7 +507,55 @@ class Campaign:
             self.say(f"{r.name}: RMS error {e / r.sigma:.2f} x noise")
         return CampaignDiscovery(records=self.records, fits=self.fits, steps=self.steps, start_model=self.spec.canonical,
                                  stop_reason=self.stop, seconds=time.perf_counter() - self.t_begin,
-                                 contradicting=contradicting, alone=alone, removals=self.removals)
+                                 contradicting=contradicting, alone=alone, removals=self.removals,
+                                 refinements=self.refinements)
+
+    def within_noise(self, m: CampaignFit) -> bool:
+        return all(e <= CRITERIA.within_noise * r.sigma for e, r in zip(m.rms_records, self.records))
+
+    def wider_laws(self) -> None:
+        """The one-record search's wider laws (rival.wider_law) on the campaign: where a record is
+        still missed, each named effect that has a wider law (laws.WIDER_LAWS: primary creep for the
+        Kelvin cells and slip, the exponential stiffness for the cubic) is fitted again with it in
+        its place, from rival._wider_law_starts on the record that shows the effect worst, to every
+        record jointly (each record's nuisance refitted once with it), and kept as a rival law is
+        (judge._law_judged on the campaign's error in noise units: a lower BIC and error, the
+        held-out parts' prediction no worse). (A creep test of the generator's log-kernel creep
+        bent the shared law so that a quiet free vibration beside it stayed at 2.5 x its noise.)"""
+        for effect, (law, other) in WIDER_LAWS.items():
+            cur = self.cur
+            if self.budget_hit or self.within_noise(cur) or effect not in cur.effects or _law_of(cur.spec, effect) != law:
+                continue
+            able = [i for i, r in enumerate(self.records) if effect in candidates(r.trace)]
+            if not able:
+                continue
+            i = max(able, key=lambda j: cur.rms_records[j] / self.records[j].sigma)
+            lead = self.records[i]
+            new = _with_law(cur.spec, effect, other)
+            base = ModelFit(spec=cur.spec.for_experiment(lead.trace.experiment), effects=cur.effects,
+                            params=dict(cur.params), free=list(cur.free), rms=cur.rms_records[i],
+                            predicted=cur.predicted[i])     # (the record baked: its nuisance in it)
+            starts = _wider_law_starts(_baked(lead.trace, lead.nz), base, new.for_experiment(lead.trace.experiment),
+                                       effect, law)
+            starts = [{**cur.params, **st} for st in starts]
+            factor = self.cap_factor_for(cur)
+            fm = self.nuisance_then_law(self.fit(new, cur.effects, starts, cap_factor=factor), cap_factor=factor)
+            held, bic = float("nan"), float("inf")
+            if not fm.ok:
+                ok, verdict = False, f"the fit failed: {fm.message}"
+            else:
+                bic = bic_change(cur, fm, self.n)
+                if bic < 0.0 and fm.rms < cur.rms:
+                    held = self.heldout_of(fm)
+                ok, verdict = _law_judged(cur.rms, fm.rms, bic, self.cur_held, held, 1.0, law)
+            terms = tuple(k for k in fm.free if k not in cur.free) if fm.ok else ()
+            self.refinements.append(Refinement(effect, terms, cur.rms, fm.rms, self.cur_held, held, bic, ok, verdict,
+                                               {k: float(fm.params[k]) for k in terms}, law=f"{law} -> {other}"))
+            self.say(f"law of {effect}, {law} -> {other}: {'kept' if ok else 'not kept'}: {verdict}")
+            if ok:
+                self.cur = self.settle(fm)
+                self.cur_held = held if self.cur is fm else self.heldout_of(self.cur)
+                self.fits.append(self.cur)
 
     def on_whole_records(self) -> None:
         """A search on thinned records carried to the whole records (the one-record search's
@@ -567,6 +621,7 @@ class Campaign:
                 raise DiscoveryError(f"{r.trace.csv_path}: the start model {self.spec.canonical} does not fit: "
                                      f"{alone.message}")
             r.nz = dict(alone.nuisance)
+            r.alone = {"law": dict(alone.law_params), "nz": dict(alone.nuisance)}
             starts.append(alone.law_params)
             self.say(f"  {r.name} alone: RMS error {alone.rms / r.sigma:.2f} x noise")
         t = time.process_time()
@@ -768,18 +823,28 @@ class Campaign:
         return own, ok, why
 
     def rest_consistent(self, i: int) -> CampaignFit | None:
-        """The final model fitted to every record but ``i`` (the law and the nuisance in turn, as
-        settle does; the records' own values restored after); the fit where it reproduces each of
-        them without an unexplained gap (CRITERIA.unexplained_gap), else None."""
+        """The final model fitted to every record but ``i`` as the campaign began (each record's
+        nuisance at its own fit's values, the law from the final one's, the data-based estimate and
+        each record's own; the law and the nuisance then in turn, as settle does; the records'
+        values restored after): the fit where it reproduces each of them without an unexplained gap
+        (CRITERIA.unexplained_gap), else None. (Started from the compromise's nuisance values, a free
+        vibration bent by a stiffer tether's record stayed at 2.97 x its noise beside the load test
+        of its own tether; the two fitted together from their own values reach 0.89 and 0.92 x.)"""
         keep = [j for j in range(len(self.records)) if j != i]
+        name = self.records[i].name
         with self.only(keep):
             saved = [dict(r.nz) for r in self.records]
             try:
-                rest = self.fit(self.cur.spec, self.cur.effects, [self.cur.params], max_iterations=30)
+                nzs = [dict(r.alone.get("nz", r.nz)) for r in self.records]
+                own = [r.alone["law"] for r in self.records if r.alone and self.cur.spec == self.spec]
+                rest = self.fit(self.cur.spec, self.cur.effects, [self.cur.params, None] + own, nzs=nzs)
                 if rest.ok:
-                    rest = self.settle(rest)   # the nuisance values the compromise bent, fitted again
+                    rest = self.settle(rest)   # the nuisance and the law in turn
                 good = rest.ok and all(_gap(e, r.sigma) < CRITERIA.unexplained_gap * r.sigma
                                        for e, r in zip(rest.rms_records, self.records))
+                self.say(f"  without {name}: " + ", ".join(
+                    f"{r.name} {e / r.sigma:.2f}" for e, r in zip(rest.rms_records, self.records))
+                    + " x noise" + ("" if good else " (not every record reproduced)"))
             finally:
                 for r, nz in zip(self.records, saved):
                     r.nz = nz

@@ -131,6 +131,7 @@ def campaign_document(d: CampaignDiscovery) -> dict:
         "removals": [{"effect": x.effect, "model_before": x.model_before, "model_after": x.model_after,
                       "rmse_before_over_noise": x.rms_before, "rmse_after_over_noise": x.rms_after, "reason": x.reason}
                      for x in d.removals],
+        "refinements": [x.as_dict(1.0) for x in d.refinements],   # errors in noise units (the campaign's)
         "records": records,
         "contradicting": d.contradicting,
         "stop_reason": d.stop_reason,
