@@ -40,9 +40,7 @@ def one_campaign(seed: int, budget: float, alone: bool, large: bool = False) -> 
     from tether.discover.campaign import discover_campaign
     from tether.traces import read_trace
 
-    if large:
-        cr.SMALL.update(LARGE)
-    recs, effects, material = cr.campaign(seed)
+    recs, effects, material = cr.campaign(seed, sizes={**cr.SMALL, **LARGE} if large else None)
     with tempfile.TemporaryDirectory() as tmp:
         stems = cr.write_campaign(recs, Path(tmp), prefix=f"c{seed}_")
         traces = [read_trace(s) for s in stems]
@@ -56,6 +54,8 @@ def one_campaign(seed: int, budget: float, alone: bool, large: bool = False) -> 
                             "revealed": [s.effect for s in d.steps if s.effect and r.name in s.revealed_by]}
                            for r, e, rec in zip(d.records, d.final.rms_records, recs)],
                "contradicting": [c["name"] for c in d.contradicting],
+               "removed": [x.effect for x in d.removals],
+               "wider_laws": [f"{x.effect} {x.law}: {'kept' if x.accepted else 'not kept'}" for x in d.refinements],
                "campaign_params": {k: d.final.params[k] for k in SHARED if k in d.final.params},
                "material_EA": material["EA_N"], "alone": []}
         if alone:
@@ -76,7 +76,9 @@ def show(r: dict) -> None:
     print(f"\ncampaign seed {r['seed']}: tether effects {r['tether_effects']}; samples {r['samples']}")
     print(f"  hidden union {r['hidden_union']}  named {r['named']}  {'RIGHT' if ok else 'WRONG'}; "
           f"{r['seconds']:.0f} s ({r['cpu']:.0f} s CPU); every record within 1.5 x noise: {within}"
-          + (f"; CONTRADICTING {r['contradicting']}" if r["contradicting"] else ""))
+          + (f"; CONTRADICTING {r['contradicting']}" if r["contradicting"] else "")
+          + (f"; removed {r['removed']}" if r["removed"] else "")
+          + (f"; wider laws {r['wider_laws']}" if r["wider_laws"] else ""))
     print(f"  {'record':<28} {'experiment':<15} {'rmse/noise':>10}  {'hidden revealed':<34} revealed (campaign)")
     for x in r["records"]:
         print(f"  {x['name']:<28} {x['experiment']:<15} {x['rmse_over_noise']:>10.2f}  "

@@ -214,3 +214,27 @@ def test_an_effect_a_later_one_makes_redundant_is_removed(tmp_path):
     assert [t.effect for t in step.retests] == ["creep"] and not step.retests[0].kept, step.retests
     assert [x.effect for x in camp.removals] == ["creep"]
     assert not camp.cur.spec.creep and camp.cur.rms <= 1.1 * start.rms
+
+
+def test_a_record_beyond_its_share_is_searched_thinned_and_reported_whole(tmp_path):
+    """A campaign of two records, a free vibration of more than SEARCH_SAMPLES / 2 samples and a
+    small creep test: the free vibration is searched on every 2nd sample (samples.search_thinning
+    with its share; the creep test, whose load steps a thinned record would smear, keeps every
+    sample), and the document reports the whole records: their samples, and errors that are those
+    of the final model on every sample."""
+    from tether.discover.samples import SEARCH_SAMPLES
+
+    sizes = {**cr.TINY, "free_vibration": {"rate": 250.0, "duration_s": 10.0}}
+    recs, _, _ = cr.campaign(4, effects=set(), experiments=("free_vibration", "creep"), sizes=sizes)
+    assert len(recs[0].time) > SEARCH_SAMPLES // 2 > len(recs[1].time)
+    traces = [read_trace(s) for s in cr.write_campaign(recs, tmp_path)]
+    lines = []
+    d = discover_campaign(traces, progress=lines.append, budget=None)
+    thinned = [ln for ln in lines if "searched on every" in ln]
+    assert len(thinned) == 1 and traces[0].name in thinned[0] and "every 2nd sample" in thinned[0], lines
+    doc = campaign_document(d)
+    for tr, r, y in zip(traces, doc["records"], d.final.predicted):
+        assert r["samples"] == len(tr.time) == len(y)
+        assert r["rmse_final"] == pytest.approx(float(np.sqrt(np.mean((y - tr.measured) ** 2))), rel=1e-9)
+        assert r["rmse_final_over_noise"] <= 1.5
+    assert doc["added_effects"] == []

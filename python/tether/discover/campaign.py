@@ -580,14 +580,13 @@ class Campaign:
             return carried[id(m)]
 
         self.fits = [whole(m) for m in self.fits]
-        rms_of = {id(m): carried[id(m)] for m in carried}
         for st in self.steps:
             st.fit_before, st.fit_after = whole(st.fit_before), whole(st.fit_after)
             st.rms_before, st.records_before = st.fit_before.rms, list(st.fit_before.rms_records)
             if st.fit_after is not None:
                 st.rms_after, st.records_after = st.fit_after.rms, list(st.fit_after.rms_records)
             for c in st.candidates:
-                c.fit = rms_of.get(id(c.fit), c.fit)
+                c.fit = carried.get(id(c.fit), c.fit)
         by_model = {}
         for m in self.fits:
             by_model.setdefault(m.model, m)
