@@ -13,9 +13,13 @@ each weighted by its own noise (tether.fit.fit_traces), and judged by the one ju
 (judge.full_data_verdict, judge.heldout_verdict) on the campaign's error in noise units (every
 residual divided by its record's noise), the held-out test on each record's held-out part. Per
 step every record's error before and after says which record revealed the effect (the one-record
-rule on that record's samples). A record the final model misses and whose own fit of the law
-earns its parameters against the shared one is flagged as contradicting the others.
-docs/campaign-discovery.md tells the design and the measured figures."""
+rule on that record's samples). Each named effect is re-tested once a later one is in
+(Campaign.retest_named); where a record is still missed at the end, the named effects' wider laws
+are tried (Campaign.wider_laws); records beyond their share of the search's samples are searched
+thinned and the final model fitted to every sample (Campaign.on_whole_records). A record the
+final model misses and whose own fit of the law earns its parameters against the shared one is
+flagged as contradicting the others. docs/campaign-discovery.md tells the design and the measured
+figures."""
 
 from __future__ import annotations
 
