@@ -4,6 +4,7 @@ tether from the project's generator (campaign_records over hidden_effects), one 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -247,3 +248,31 @@ def test_a_record_beyond_its_share_is_searched_thinned_and_reported_whole(tmp_pa
         assert r["rmse_final"] == pytest.approx(float(np.sqrt(np.mean((y - tr.measured) ** 2))), rel=1e-9)
         assert r["rmse_final_over_noise"] <= 1.5
     assert doc["added_effects"] == []
+
+
+def test_the_held_out_test_goes_on_while_no_candidate_passes_it():
+    """Three candidates pass on the whole campaign; the best two by the BIC fail the held-out test:
+    the third is tested and wins (the one-record search's rule, Search.heldout_tests). Where the
+    first passes, the second is tested too and the third is not."""
+    from tether.discover.campaign import Campaign, CampaignCandidate, CampaignFit
+    from tether.discover.judge import heldout_verdict
+
+    def cand(effect, rms, held):
+        f = CampaignFit(spec=parse_model("linear"), effects=(), params={}, free=[], rms=rms, rms_records=[rms],
+                        predicted=[])
+        f.held = held
+        return CampaignCandidate(effect=effect, fit=f, added_parameters=1, bic_change=-1.0, accepted=True)
+
+    camp = Campaign.__new__(Campaign)
+    camp.say, camp.heldout_candidates = (lambda s: None), 2
+    camp.cur = CampaignFit(spec=parse_model("linear"), effects=(), params={}, free=[], rms=10.0, rms_records=[10.0],
+                           predicted=[])
+    camp.cur_held = 10.0
+    camp.heldout_of = lambda f: f.held
+    assert not heldout_verdict(1.0, 10.0, 50.0, 10.0, 5.0)[0] and heldout_verdict(1.0, 10.0, 2.0, 10.0, 5.0)[0]
+    passing = [cand("nonlinear_stiffness", 5.0, 50.0), cand("nonlinear_damping", 5.0, 40.0), cand("creep", 5.0, 2.0)]
+    win = camp.heldout_tests(passing)
+    assert win is passing[2] and [c.accepted for c in passing] == [False, False, True]
+    passing = [cand("creep", 5.0, 2.0), cand("nonlinear_damping", 5.0, 40.0), cand("nonlinear_stiffness", 5.0, 3.0)]
+    win = camp.heldout_tests(passing)
+    assert win is passing[0] and math.isnan(passing[2].heldout_rms) and "not tested" in passing[2].verdict
