@@ -40,12 +40,23 @@ local cluster of one worker process per core, or --scheduler tcp://HOST:PORT): D
 record as it finishes, then DIR/summary.csv and DIR/summary.json, one row per record; --resume
 keeps the records DIR already holds (the same record from the same start) and runs the rest.
 
+Two records or more (TRACE TRACE...) are a campaign: records of one tether, discovered jointly. The
+material law, damping, hysteresis and creep are shared; each record keeps its own length, mass,
+gravity, initial state, noise and nuisance parameters. An effect is added when it earns its place
+on the whole campaign by the one-record criteria (each record weighted by its own noise, the
+held-out test on each record's held-out part). OUT.json adds `records` (per record its noise, its
+error before and after every step, which step it revealed, the verdict on every effect for it)
+and `contradicting`: the records the shared law misses while their own fit does far better (another
+tether, a wrong mass, a unit error), also named on stderr (docs/campaign-discovery.md).
+
 Exit status: 0 done; 2 bad input; 1 engine or FMU failure.
 """
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("trace", metavar="TRACE", nargs="?", help="NAME.csv, NAME.json or NAME")
+    parser.add_argument("more", metavar="TRACE", nargs="*",
+                        help="further records of the same tether: a campaign, discovered jointly")
     parser.add_argument("--start", metavar="MODEL", default="linear",
                         help="model to start from (default: linear, the trace format's baseline)")
     parser.add_argument("--json", metavar="OUT.json", help="discovery record to write (required with TRACE)")
@@ -86,6 +97,9 @@ def run(args) -> int:
         return run_each(args)
     if args.trace is None or args.json is None:
         raise CLIError("give TRACE and --json OUT.json (or --each TRACE... --out-dir DIR)")
+    if args.more:
+        from .discover_campaign import run_campaign
+        return run_campaign(args, mass_band)
     trace = read_checked_trace(args.trace)
     parse_model(args.start, trace.experiment)                # a bad model string fails before any fit
     out = check_output_path(args.json, trace, option="--json")

@@ -100,13 +100,13 @@ def _rebuild_kinds(trace: Trace, k: int) -> tuple:
     return (own,) if trace.input is None or own == "spline" or k <= 1 else (own, "spline")
 
 
-def search_thinning(trace: Trace, sigma: float) -> int:
+def search_thinning(trace: Trace, sigma: float, samples: int = SEARCH_SAMPLES) -> int:
     """k: the search runs on every k-th sample (1: on the whole record). The largest k up to what
-    brings the simulated samples (one period of a periodic record) to SEARCH_SAMPLES whose input
-    is rebuilt (thinned_interpolation) within THINNED_INPUT_SHARE of the noise (a periodic record:
-    k divides its period)."""
+    brings the simulated samples (one period of a periodic record) to ``samples`` (SEARCH_SAMPLES;
+    a campaign shares them between its records) whose input is rebuilt (thinned_interpolation)
+    within THINNED_INPUT_SHARE of the noise (a periodic record: k divides its period)."""
     P = int(trace.periodic_samples or 0)
-    k_max = math.ceil((P or len(trace.time)) / SEARCH_SAMPLES)
+    k_max = math.ceil((P or len(trace.time)) / samples)
     for k in range(k_max, 1, -1):
         if P and P % k:
             continue
