@@ -179,7 +179,8 @@ def test_shape_refinement_follows_a_damping_that_levels_off(tmp_path, run_cli):
     polynomial = doc["steps"][-1]["rmse_after"]
     kept = [r for r in doc["refinements"] if r["accepted"]]
     assert len(kept) == 1 and kept[0]["effect"] == "nonlinear_damping", doc["refinements"]
-    assert kept[0]["rmse_before"] == pytest.approx(polynomial) and polynomial > 2.0 * sigma
+    # (the refinement starts from the step's polynomial or a refit of it that is no worse)
+    assert kept[0]["rmse_before"] <= polynomial * (1 + 1e-9) and kept[0]["rmse_before"] > 2.0 * sigma
     assert doc["rmse_final"] == pytest.approx(kept[0]["rmse_after"]) and doc["rmse_final"] <= 1.5 * sigma
     assert doc["shape_refined"] == kept[0]["parameters"] and doc["parameters"]["c_table_dx"] > 0
     assert "shape of nonlinear_damping refined" in out
