@@ -27,7 +27,6 @@ import copy
 import math
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
@@ -36,7 +35,7 @@ from .. import identify_native as idn
 from .. import nuisance as NZ
 from ..blas import in_one_blas_thread
 from ..models import EFFECTS, ModelSpec, parse_model
-from ..noise import NoiseEstimate, estimate_noise
+from ..noise import estimate_noise
 from ..traces import Trace
 from .document import ordinal
 from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, _side_by_side, fit_model, predict
@@ -46,7 +45,7 @@ from .nuisance import nuisance_parameters, nuisance_start
 from .records import DiscoveryError, Refinement, Removal, Retest
 from .rival import _wider_law_starts
 from .samples import SEARCH_SAMPLES, WHOLE_RECORD_ITERATIONS, _truncated, search_thinning, thinned
-from .scales import _Scales, _scales
+from .scales import _scales
 from .starts import _reduced_starts, candidate_starts
 
 #: quick iterations of each start of a candidate with several (as fit_model's)
@@ -55,153 +54,8 @@ QUICK_ITERATIONS = 12
 SETTLE_ROUNDS = 2
 
 
-@dataclass
-class Record:
-    """One record of the campaign: the trace, its noise, its held-out split, its scales and the
-    current values of its nuisance parameters."""
-
-    trace: Trace
-    nuisance: tuple
-    noise: NoiseEstimate
-    part: Trace
-    first: int
-    sc: _Scales
-    nz: dict = field(default_factory=dict)
-    alone: dict = field(default_factory=dict)   # the start model fitted to this record alone: law and nuisance
-    whole: Trace | None = None     # the whole record where the search runs on every k-th sample
-    every: int = 1                 # k (samples.search_thinning)
-
-    @property
-    def name(self) -> str:
-        return self.trace.name
-
-    @property
-    def sigma(self) -> float:
-        return float(self.noise.sigma)
-
-    @property
-    def n(self) -> int:
-        return len(self.trace.time)
-
-
-@dataclass
-class CampaignFit:
-    """One model fitted to every record of the campaign. ``rms`` is the campaign's error in noise
-    units (sqrt of the mean over all samples of (residual / its record's noise)^2), the scale the
-    judge reads with sigma = 1; ``rms_records`` each record's own error [its unit]."""
-
-    spec: ModelSpec
-    effects: tuple
-    params: dict                   # the shared law: every parameter of the model
-    free: list                     # the shared law's free names
-    rms: float
-    rms_records: list
-    predicted: list = field(repr=False)
-    nz: list = field(default_factory=list)   # per record: its nuisance values in this fit
-    n_nuisance: int = 0
-    ok: bool = True
-    message: str = ""
-    seconds: float = 0.0
-
-    @property
-    def model(self) -> str:
-        return self.spec.canonical
-
-    @property
-    def n_free(self) -> int:
-        return len(self.free) + self.n_nuisance
-
-
-@dataclass
-class CampaignCandidate:
-    effect: str
-    fit: CampaignFit
-    added_parameters: int
-    bic_change: float
-    verdict: str = ""
-    accepted: bool = False
-    heldout_rms: float = float("nan")
-
-
-@dataclass
-class CampaignStep:
-    effect: str | None
-    model_before: str
-    model_after: str | None
-    rms_before: float              # noise units
-    rms_after: float | None
-    records_before: list           # per record [its unit]
-    records_after: list | None
-    revealed_by: list = field(default_factory=list)
-    revealed_how: str = ""
-    candidates: list = field(default_factory=list)
-    fit_before: CampaignFit | None = field(default=None, repr=False)
-    fit_after: CampaignFit | None = field(default=None, repr=False)
-    retests: list = field(default_factory=list)    # Retest: the effects named before, tested again beside this one
-
-
-@dataclass
-class CampaignDiscovery:
-    records: list
-    fits: list
-    steps: list
-    start_model: str
-    stop_reason: str
-    seconds: float
-    contradicting: list
-    alone: dict                    # record name -> its own fit of the final model (the contradiction test)
-
-    @property
-    def final(self) -> CampaignFit:
-        return self.fits[-1]
-
-    removals: list = field(default_factory=list)   # Removal: an effect a later one made redundant
-    refinements: list = field(default_factory=list)  # Refinement: a named effect's wider law tried at the end
-
-    @property
-    def added_effects(self) -> list:
-        """The effects of the final model the search added, in the order they were added."""
-        return [s.effect for s in self.steps if s.effect and s.effect in self.final.effects]
-
-
-def _baked(trace: Trace, nz: dict) -> Trace:
-    """``trace`` with its nuisance values ``nz`` made part of the record: the offset taken off the
-    measured column, the input's gain and offset applied, the mass and initial state in its
-    metadata. A joint fit of baked records holds each record's nuisance at its own values (the
-    engine's parameters are shared by all experiments of a fit)."""
-    out = copy.copy(trace)
-    out.measured = np.asarray(trace.measured, float) - float(nz.get("offset_measured", 0.0))
-    if trace.input is not None and ("input_gain" in nz or "offset_input" in nz):
-        out.input = float(nz.get("input_gain", 1.0)) * np.asarray(trace.input, float) + float(nz.get("offset_input", 0.0))
-    if "m" in nz:
-        out.payload_mass_kg = float(nz["m"])
-    if "x0" in nz:
-        out.initial_displacement_m = float(nz["x0"])
-    if "v0" in nz:
-        out.initial_velocity_m_s = float(nz["v0"])
-    return out
-
-
-def _law_only(params: dict, spec: ModelSpec) -> dict:
-    return {k: float(v) for k, v in params.items() if k in spec.parameters and k not in NZ.NUISANCE}
-
-
-class CampaignInputError(DiscoveryError):
-    """A campaign that cannot be run as given (the input's fault); ``str(e)`` names the file."""
-
-
-def check_campaign(traces: Sequence[Trace]) -> None:
-    """CampaignInputError naming the file for a campaign it cannot run: fewer than two records,
-    one record given twice."""
-    if len(traces) < 2:
-        raise CampaignInputError("a campaign needs two records or more")
-    seen = {}
-    for tr in traces:
-        key = tr.csv_path.resolve()
-        if key in seen:
-            raise CampaignInputError(f"{tr.csv_path}: the record is given twice in the campaign (as {seen[key]} "
-                                 f"and {tr.stem}); give each record once")
-        seen[key] = tr.stem
+from .campaign_records import (CampaignCandidate, CampaignDiscovery, CampaignFit, CampaignInputError,  # noqa: F401
+                               CampaignStep, Record, _baked, _law_only, check_campaign)
 
 
 @in_one_blas_thread
