@@ -71,7 +71,7 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     effect = "hysteresis"
     law = cur.spec.hysteresis
     laws = RIVAL_LAWS[effect]
-    named_last = list(added).index(effect) == len(added) - 1 if effect in added else False
+    named_last = list(added)[-1:] == [effect]
     still_missing = _gap(cur.rms, sigma) >= CRITERIA.unexplained_gap * sigma
     if (cur.rms <= CRITERIA.within_noise * sigma or law not in laws or effect not in added
             or (named_last and not elastic_reshaped and not still_missing)):
@@ -237,8 +237,7 @@ def _finer_spread(k: np.ndarray, e: np.ndarray, size: int) -> tuple[np.ndarray, 
     live = k >= IWAN_IDLE_SHARE * total
     if not total > 0 or 2 * int(live.sum()) > size:
         return None
-    k2 = np.concatenate([k[live] / 2, k[live] / 2])
-    e2 = np.concatenate([e[live] * (1 - IWAN_SPLIT), e[live] * (1 + IWAN_SPLIT)])
+    k2, e2 = _split_in_two(k[live], e[live])
     rest = size - len(k2)
     if rest:
         e2 = np.r_[e2, _gap_midpoints(e2, rest)]
@@ -263,21 +262,26 @@ def _finer_kept(k: np.ndarray, e: np.ndarray, size: int) -> tuple[np.ndarray, np
     if len(carrying) == 0 or len(carrying) >= size or not float(force.sum()) > 0:
         return None
     by_force = carrying[np.argsort(-force[carrying], kind="stable")]
-    split = set(by_force[:size - len(carrying)].tolist())
-    k2, e2 = [], []
-    for i in carrying:
-        if i in split:
-            k2 += [k[i] / 2, k[i] / 2]
-            e2 += [e[i] * (1 - IWAN_SPLIT), e[i] * (1 + IWAN_SPLIT)]
-        else:
-            k2.append(k[i])
-            e2.append(e[i])
+    split, kept = by_force[:size - len(carrying)], by_force[size - len(carrying):]
+    k_split, e_split = _split_in_two(k[split], e[split])
+    k2, e2 = np.r_[k[kept], k_split], np.r_[e[kept], e_split]
     rest = size - len(k2)
     if rest:
         new = np.array(_gap_midpoints(e2, rest))
-        e2 += list(new)
-        k2 += list(IWAN_RESTART_SHARE * float(force.sum()) / new)
-    return np.array(k2), np.array(e2)
+        e2, k2 = np.r_[e2, new], np.r_[k2, IWAN_RESTART_SHARE * float(force.sum()) / new]
+    return k2, e2
+
+
+def _bank_params(k: np.ndarray, e: np.ndarray) -> dict:
+    """The bank's parameters, its elements in the order of their slip strains."""
+    order = np.argsort(e)
+    return {**{n: float(v) for n, v in zip(IWAN_K, k[order])}, **{n: float(v) for n, v in zip(IWAN_EPS, e[order])}}
+
+
+def _split_in_two(k: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each element (stiffness ``k``, slip strain ``e``) as two of half its stiffness, their slip
+    strains IWAN_SPLIT below and above its own."""
+    return np.r_[k / 2, k / 2], np.r_[e * (1 - IWAN_SPLIT), e * (1 + IWAN_SPLIT)]
 
 
 def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
@@ -305,8 +309,7 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
     banks = [b for b in (_finer_spread(k, e, len(IWAN_K)), _finer_kept(k, e, len(IWAN_K))) if b is not None]
     if not banks:
         return cur, cur_held, None
-    starts = [{**cur.params, **{n: float(v) for n, v in zip(IWAN_K, k2[np.argsort(e2)])},
-               **{n: float(v) for n, v in zip(IWAN_EPS, e2[np.argsort(e2)])}} for k2, e2 in banks]
+    starts = [{**cur.params, **_bank_params(k2, e2)} for k2, e2 in banks]
     terms = tuple(n for n in IWAN_K + IWAN_EPS if n not in cur.free)
     extra = tuple(cur.shape) + tuple(n for n in IWAN_K[len(bank):] + IWAN_EPS if n not in cur.shape)
     cap_factor = bank_cap_factor(len(IWAN_K))
