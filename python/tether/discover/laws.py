@@ -10,7 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from ..models import IWAN_EPS, IWAN_EPS_FIT, IWAN_K, ModelSpec
-from ..traces import Trace
+from ..traces import EXPERIMENTS, Trace
 from .scales import _Scales
 
 
@@ -101,7 +101,6 @@ EFFECTS = (
 )
 
 EFFECT = {e.name: e for e in EFFECTS}
-_EXPERIMENTS = ("free_vibration", "forced", "load_unload", "creep")
 
 
 def _search_order(experiment: str) -> tuple[str, ...]:
@@ -111,13 +110,13 @@ def _search_order(experiment: str) -> tuple[str, ...]:
 
 
 #: candidate effects per experiment (what the experiment can reveal), in the order they are tried
-CANDIDATES = {x: _search_order(x) for x in _EXPERIMENTS}
+CANDIDATES = {x: _search_order(x) for x in EXPERIMENTS}
 
 
 #: why an experiment cannot reveal each effect of the vocabulary it has no candidate for
 #: (CANDIDATES and this table together cover every effect of every experiment)
 NOT_REVEALED = {x: {e.name: e.unrevealed[x] for e in EFFECTS if x in e.unrevealed}
-                for x in _EXPERIMENTS if any(x in e.unrevealed for e in EFFECTS)}
+                for x in EXPERIMENTS if any(x in e.unrevealed for e in EFFECTS)}
 
 
 #: shape terms of a named effect's law that the last stage may free (see refine_shapes), per effect
