@@ -183,41 +183,48 @@ PRIMARY = dict(rig=3, stiffness=1, EA=EA_CREEP, damping=1, hysteresis=1, creep=T
                creep_J1=0.0, creep_J2=0.0, creep_J3=0.0, primary_J=2e-6, primary_tau=30.0, L0=L0)
 
 
+def _on_constant_segments(t, T_of, breaks, segment):
+    """The strain under a load constant between ``breaks`` (T_of(t) there), from zero:
+    ``segment(T, eps0)`` gives the strain of a segment under load T that starts from eps0, as a
+    function of the time since the segment began."""
+    t = np.asarray(t, float)
+    out = np.zeros_like(t)
+    eps0, edges = 0.0, [t[0]] + list(breaks) + [np.inf]
+    for a, b in zip(edges[:-1], edges[1:]):
+        law = segment(T_of(a), eps0)
+        sel = (t >= a) & (t <= b)
+        out[sel] = law(t[sel] - a)
+        if np.isfinite(b):
+            eps0 = float(law(b - a))
+    return out
+
+
 def primary_closed_form(t, T_of, breaks, J, tau, n):
     """The primary creep strain under a load constant between ``breaks`` (T_of(t) there), written
     out from docs/models.md: on each segment eps = (C/n)((1 + (t - t_s + t_eq)/tau)^n - 1)
     (C ln(1 + ...) at n = 0), C = J T, with t_eq the time at which the segment's law reaches the
     strain the segment starts from (strain hardening); no change where T = 0."""
-    t = np.asarray(t, float)
-    out = np.zeros_like(t)
-    eps0, edges = 0.0, [t[0]] + list(breaks) + [np.inf]
-    for a, b in zip(edges[:-1], edges[1:]):
-        C = J * T_of(a)
-        sel = (t >= a) & (t <= b)
+
+    def segment(T, eps0):
+        C = J * T
         if C <= 0:
-            out[sel] = eps0
-            continue
+            return lambda dt: np.full_like(np.asarray(dt, float), eps0)
         t_eq = tau * (np.expm1(eps0 / C) if n == 0 else (1 + n * eps0 / C) ** (1 / n) - 1)
-        s = (np.minimum(t, b) - a + t_eq) / tau
-        law = (lambda x: C * np.log1p(x)) if n == 0 else (lambda x: C / n * ((1 + x) ** n - 1))
-        out[sel] = law(s[sel])
-        if np.isfinite(b):
-            eps0 = float(law((b - a + t_eq) / tau))
-    return out
+        if n == 0:
+            return lambda dt: C * np.log1p((dt + t_eq) / tau)
+        return lambda dt: C / n * ((1 + (dt + t_eq) / tau) ** n - 1)
+
+    return _on_constant_segments(t, T_of, breaks, segment)
 
 
 def kelvin_closed_form(t, T_of, breaks, J, tau):
     """One Kelvin cell, eps' = (J T - eps)/tau, under a load constant between ``breaks``."""
-    t = np.asarray(t, float)
-    out = np.zeros_like(t)
-    eps0, edges = 0.0, [t[0]] + list(breaks) + [np.inf]
-    for a, b in zip(edges[:-1], edges[1:]):
-        target = J * T_of(a)
-        sel = (t >= a) & (t <= b)
-        out[sel] = target + (eps0 - target) * np.exp(-(t[sel] - a) / tau)
-        if np.isfinite(b):
-            eps0 = target + (eps0 - target) * math.exp(-(b - a) / tau)
-    return out
+
+    def segment(T, eps0):
+        target = J * T
+        return lambda dt: target + (eps0 - target) * np.exp(-dt / tau)
+
+    return _on_constant_segments(t, T_of, breaks, segment)
 
 
 # a constant load; a step up (strain hardening continues from the strain reached); an unloading
