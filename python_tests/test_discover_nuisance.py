@@ -57,7 +57,8 @@ def test_a_hidden_mass_and_an_offset_are_not_named_as_effects(slack_forced, run_
     lo, hi = got["offset_measured"]["interval"]
     assert lo <= nz["offset_measured"] <= hi
     assert "nuisance m:" in stdout and "moved" in stdout
-    assert set(doc["nuisance"]["not_freed"]) == {"offset_input"}
+    assert set(doc["nuisance"]["not_freed"]) == {"offset_input", "last_reversal_beyond"}
+    assert "iwan" in doc["nuisance"]["not_freed"]["last_reversal_beyond"]
     # the --params part of the record holds the model's own parameters only
     assert not set(doc["parameters"]) & {"m", "x0", "v0", "offset_measured"}
 
@@ -70,7 +71,7 @@ def test_without_the_nuisance_parameters_the_same_record_is_misread(slack_forced
     assert doc["nuisance"]["parameters"] == {}
     kept = doc["nuisance"]["not_freed"]
     # the parameters that apply to the record, each kept: the force gain is known, so no input_gain
-    assert set(kept) == {"offset_measured", "m", "x0", "v0", "offset_input"}
+    assert set(kept) == {"offset_measured", "m", "x0", "v0", "last_reversal_beyond", "offset_input"}
     assert "--no-nuisance" in kept["offset_measured"]
 
 
@@ -89,11 +90,11 @@ def test_which_nuisance_parameters_discovery_frees(tmp_path):
     fv, fo, lu = (read_trace(s) for s in (fv, fo, lu))
     assert D.nuisance_parameters(fv) == ["offset_measured", "x0"]
     assert "m" in D.nuisance_not_freed(fv) and "scales with" in D.nuisance_not_freed(fv)["m"]
-    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "m"]
+    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "last_reversal_beyond", "m"]
     assert D.nuisance_parameters(lu) == ["offset_measured"]
     assert "offset_input" in D.nuisance_not_freed(lu)
     fo.force_gain_known = False
-    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "input_gain"]
+    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "last_reversal_beyond", "input_gain"]
     fo.force_gain_known, fo.mass_uncertainty_rel = True, 0.0
     assert "m" not in D.nuisance_parameters(fo)
 

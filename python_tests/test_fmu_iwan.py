@@ -77,6 +77,48 @@ def test_payload_free_vibration_matches_the_generators_integration(case):
         assert np.any(r["tension"] == 0.0)
 
 
+def test_a_record_cut_after_a_reversal_goes_on_as_the_whole_run():
+    """A run released from x_r (the bank displaced monotonically from the balance: the motion
+    reverses there) and cut on its way down, 0.1 s later, before its next reversal: a record that
+    starts at the cut (x0, v0 there) with last_reversal_beyond = x_r - |x0| has the bank's state
+    of the whole run (Masing's rule: monotone to x_r, then back), and goes on as the generator's
+    whole run does, to 1e-6 of the swing. Started with the bank displaced monotonically to x0 (0,
+    the default), or with a reversal 2 mm further up, it does not: the elements remember."""
+    x_r, c0, h, cut = 0.01, 0.2, 1e-3, 100            # the first minimum comes at about 0.4 s
+    times = H.grid(3.0, h)
+    ub = M * G / EA * L0
+    bank = generator_bank()
+    bank.reset(ub / L0)
+    bank.commit((ub + x_r) / L0)
+    rig = he._Rig(L0, M, G, _Linear(EA), bank, lambda x, v: c0 * v, False, ub)
+    U, V, _ = rig.run(times, ub + x_r, 0.0, hmax=1e-4)
+    x_gen, x0, v_cut = np.asarray(U) - ub, float(U[cut] - ub), float(V[cut])
+    assert v_cut < 0.0 and 0.0 < x0 and np.all(np.diff(x_gen[:cut + 1]) < 0.0)   # on its way down, no reversal yet
+    values = dict(rig=2, stiffness=1, damping=1, creep=False, slack=False, m=M, g=G, EA=EA, L0=L0, c0=c0,
+                  x0=x0, v0=v_cut, rtol=1e-10) | IWAN
+    rest = times[cut:] - times[cut]
+    errors = {}
+    for label, beyond in (("at x_r", x_r - x0), ("the default", 0.0), ("2 mm above x_r", x_r - x0 + 0.002)):
+        inst = H.cs(values | dict(last_reversal_beyond=beyond))
+        x = H.run_cs(inst, rest, ["displacement"])["displacement"]
+        inst.free()
+        errors[label] = float(np.max(np.abs(x - x_gen[cut:])))
+    swing = float(np.ptp(x_gen[cut:]))
+    print(f"FIGURE Iwan record cut after a reversal: largest |x_FMU - x_generator| over a swing of {swing:.3g} m, "
+          "the last reversal " + ", ".join(f"{k} {v:.3g} m" for k, v in errors.items()))
+    assert errors["at x_r"] < 1e-6 * swing
+    assert errors["the default"] > 1e-3 * swing and errors["2 mm above x_r"] > 1e-4 * swing
+
+
+def test_last_reversal_beyond_must_be_finite():
+    """A NaN last reversal is refused when set, the message naming it and its value."""
+    inst = H.Instance("cs")
+    st = inst.set("last_reversal_beyond", float("nan"))
+    errors = inst.log.with_status(H.fmi2Error)
+    inst.free()
+    assert st == H.fmi2Error and errors and "last_reversal_beyond = nan" in errors[-1], errors
+
+
 def test_load_rig_loops_match_the_generators_quasi_static_solution():
     """A load program with nested loops (0 -> 60 N -> 20 -> 45 -> 30 -> 45 -> 20 -> 60 -> 0),
     the load held over each 0.1 s step: the strain at every step equals the generator's

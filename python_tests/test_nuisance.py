@@ -116,6 +116,47 @@ def test_forced_record_starting_in_motion_recovers_x0_and_v0(capsys):
     assert r.rms < 1.2 * NOISE and held.rms > 3 * NOISE, (r.rms, held.rms)
 
 
+def test_forced_record_in_motion_with_an_iwan_bank_needs_its_last_reversal(capsys):
+    """A forced record cut out of a longer run with an Iwan bank whose elements remember where the
+    motion last reversed: 1.6 cm below the balance, further than the record's own motion goes down
+    (its force is half the other records'), so the memory lasts through the record. Freed with x0
+    and v0 (last_reversal_beyond: 1.2 cm beyond the span [-x0, x0]), the fit recovers x0 and v0
+    within their intervals, the reversal within 10 %, and reaches the noise; with the bank
+    started as if displaced monotonically from the balance (held at 0, the default), x0 or v0
+    lands outside its interval and the error stays above the noise."""
+    from tether.fit.iwan_bank import iwan_params, iwan_slip_grid
+    from tether.models import IWAN_K_FIT
+
+    k = np.array([900.0, 700.0, 1200.0, 800.0, 600.0, 1000.0, 500.0, 400.0])
+    bank = iwan_params(iwan_slip_grid(3e-3), k)
+    state = {"x0": 0.004, "v0": 0.05, "last_reversal_beyond": -0.012}
+    law = {**TRUTH, **bank}
+    t = np.arange(3000) * 2e-3
+    tr = _synthetic("forced", t, 0.5 * _multisine(t), {**law, **state}, model="linear+iwan")
+    assert np.min(tr.measured) > -0.016 + 3 * NOISE        # the record never reaches the reversal again
+    fixed = {n: v for n, v in bank.items() if n not in IWAN_K_FIT}
+    start = {**law, "EA": 0.9 * TRUTH["EA"], "c0": 1.5 * TRUTH["c0"]}
+    free = ["EA", "c0", *IWAN_K_FIT, "x0", "v0"]
+    r = fit_traces([tr], "linear+iwan", free=free + ["last_reversal_beyond"], fixed=fixed, start=start)
+    held = fit_traces([tr], "linear+iwan", free=free, fixed=fixed, start=start)
+    _say(capsys, "\n".join(_row(r, n, v) for n, v in state.items()) + f"\nrms {r.rms / NOISE:.3f} x noise; "
+         f"last_reversal_beyond held at 0: {held.rms / NOISE:.3f} x noise,\n"
+         + "\n".join(_row(held, n, state[n]) for n in ("x0", "v0")))
+    for n in ("x0", "v0"):
+        assert _inside(r, n, state[n]), (n, r.values[n], r.ci95[n])
+    assert r.values["last_reversal_beyond"] == pytest.approx(state["last_reversal_beyond"], rel=0.1)
+    assert r.rms < 1.1 * NOISE, r.rms
+    assert held.rms > 1.2 * NOISE, held.rms
+    assert not (_inside(held, "x0", state["x0"]) and _inside(held, "v0", state["v0"]))
+    assert r.nuisance["last_reversal_beyond"] == r.values["last_reversal_beyond"]
+
+
+def test_last_reversal_beyond_is_refused_without_an_iwan_bank():
+    tr = _forced({**TRUTH, "x0": 0.01})
+    with pytest.raises(FitError, match="last_reversal_beyond.*iwan"):
+        fit_traces([tr], "linear+boucwen", free=["EA", "x0", "last_reversal_beyond"])
+
+
 # ---- a forced record whose effective mass is 1.2 x the JSON's -------------------------------------
 def test_forced_record_with_a_heavier_payload_needs_m_or_the_gain_free(capsys):
     m_true = 1.2 * M_JSON

@@ -247,6 +247,7 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (!(p->line_density >= 0.0) || !isfinite(p->line_density))
         FAIL("line_density = %g kg/m: expected the tether line's mass per length, finite and >= 0", p->line_density);
     if (!(p->g >= 0.0)) FAIL("g = %g m/s2: expected g >= 0", p->g);
+    if (!isfinite(p->last_reversal_beyond)) FAIL("last_reversal_beyond = %g m: expected a finite distance", p->last_reversal_beyond);
     if (p->stiffness == STIFFNESS_LINEAR && p->hysteresis != HYSTERESIS_KAWABATA && !(p->EA > 0.0)) FAIL("EA = %g N: the linear law needs EA > 0", p->EA);
     if (p->stiffness == STIFFNESS_CUBIC && p->hysteresis != HYSTERESIS_KAWABATA && !(p->a1 > 0.0)) FAIL("a1 = %g N: the cubic law needs a1 > 0", p->a1);
     if (p->stiffness == STIFFNESS_EXPONENTIAL && p->hysteresis != HYSTERESIS_KAWABATA) {
@@ -317,6 +318,15 @@ static int static_strain_at(const tether_model *M, double T, double *eps)
     return elastic_strain_below(p, T, M->d.rising_limit, eps);
 }
 
+/* The displacement at which a payload displaced to x0 last reversed, ``beyond`` past the span
+ * [-|x0|, |x0|]: a reversal inside that span leaves the bank as a monotone displacement from the
+ * balance to x0 does (Masing's rule: the branch from it rejoins the virgin curve by x0), so every
+ * beyond != 0 is a reversal the bank remembers, and 0 is the monotone displacement. */
+static double last_reversal(double x0, double beyond)
+{
+    return beyond > 0.0 ? fabs(x0) + beyond : -fabs(x0) + beyond;
+}
+
 int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t len)
 {
     const tether_params *p = &M->p;
@@ -346,11 +356,14 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
         y[ST_VELOCITY] = p->v0;
         if (p->hysteresis == HYSTERESIS_IWAN) {
             /* the elements are unloaded at the balance (a tether shaken down under its payload);
-             * the payload is then displaced to x0 monotonically */
+             * the payload is then displaced monotonically to its last reversal, then to x0 */
+            const double x_r = last_reversal(p->x0, p->last_reversal_beyond);
+            const double eps_r = iwan_strain(M, (M->d.balance_elongation + x_r) / M->in.L0);
             const double eps0 = iwan_strain(M, (M->d.balance_elongation + p->x0) / M->in.L0);
             iwan_reset(&M->d.iwan, iwan_strain(M, eps));
+            iwan_advance(p, &M->d.iwan, eps_r);
             iwan_advance(p, &M->d.iwan, eps0);
-            M->d.iwan.direction = p->x0 >= 0.0 ? 1 : -1;
+            M->d.iwan.direction = p->x0 >= x_r ? 1 : -1;
         }
     } else if (p->rig == RIG_LOAD) {
         const double T0 = input_load(M, t0) - z0;

@@ -4,6 +4,10 @@
   starts; a fit keeps it in the band ``payload_mass_kg * (1 +- rel)`` (:func:`mass_bounds`).
 - ``x0``, ``v0``: the initial state of a payload record that does not start where its JSON says
   (a forced record cut out of a longer run starts in motion).
+- ``last_reversal_beyond``: the rest of that state where the model has an Iwan bank, whose elements
+  remember the motion before the record: where it last reversed, as the distance beyond the span
+  [-|x0|, |x0|] (Masing's rule gives each element's state from it; a reversal inside the span
+  leaves the same state as none; 0 is a payload displaced monotonically from the balance to x0).
 - ``offset_measured``, ``offset_input``, ``input_gain``: the measurement (the engine's
   KT_PAR_MEASUREMENT parameters, identify_native.MEASUREMENT_DEFAULTS): the model is driven by
   ``input_gain * recorded input + offset_input`` and the measured column is the model's output
@@ -33,8 +37,10 @@ __all__ = ["NUISANCE", "MEASUREMENT", "STATE", "DEFAULT_MASS_BAND", "INPUT_GAIN_
 
 #: the measurement parameters and their defaults (the engine's own list)
 MEASUREMENT = tuple(MEASUREMENT_DEFAULTS)
-#: the initial state of a payload record
-STATE = ("x0", "v0")
+#: the initial state of a payload record (the last reversal: the Iwan bank's memory of it)
+STATE = ("x0", "v0", "last_reversal_beyond")
+#: the nuisance parameters that belong to one hysteresis law: name -> the law
+HYSTERESIS_STATE = {"last_reversal_beyond": "iwan"}
 #: every nuisance parameter a fit may free, in report order
 NUISANCE = ("m", *STATE, *MEASUREMENT)
 #: half-width of the mass band, relative, where a trace states no mass_uncertainty_rel
@@ -71,6 +77,14 @@ def mass_bounds(trace: Trace, rel: float | None = None) -> tuple[float, float]:
     m = float(trace.payload_mass_kg)
     b = mass_band_rel(trace, rel)
     return m * (1.0 - b), m * (1.0 + b)
+
+
+def law_refusal(name: str, hysteresis: str) -> str | None:
+    """Why ``name`` cannot be freed in a model of hysteresis law ``hysteresis``; None if it can."""
+    law = HYSTERESIS_STATE.get(name)
+    if law is None or law == hysteresis:
+        return None
+    return f"it is the memory of the {law} hysteresis law, and the model's hysteresis is {hysteresis}"
 
 
 def refusal(trace: Trace, name: str, free: Sequence[str] = ()) -> str | None:
@@ -154,6 +168,27 @@ def _initial_velocity(trace: Trace) -> float:
     return float(c[1])
 
 
+def _last_reversal_beyond(trace: Trace) -> float:
+    """How far beyond the span [-|x0|, |x0|] (x0 the record's start) the motion before the record
+    last reversed (physics/tether.c: last_reversal), from the record itself: its first extremum (where it has come back from
+    its running extreme by three sample-to-sample noise levels) mirrored about its mean, as a
+    record cut out of a steady run swings about as far each way; 0 where it has no extremum or the
+    mirror lies inside the span. Displacements from the balance are read as the measured column
+    less its mean."""
+    y = np.asarray(trace.measured, float)
+    y = y - np.mean(y)
+    back = 3.0 * float(np.std(np.diff(y))) / math.sqrt(2.0)
+    direction = 1.0 if _initial_velocity(trace) >= 0.0 else -1.0
+    extreme = y[0]
+    for v in y[1:]:
+        if direction * (v - extreme) > 0.0:
+            extreme = v
+        elif direction * (extreme - v) > back:
+            x_r, x0 = -float(extreme), abs(float(y[0]))
+            return x_r - x0 if x_r > x0 else (x_r + x0 if x_r < -x0 else 0.0)
+    return 0.0
+
+
 def stated_values(trace: Trace) -> dict:
     """What the record states (or the tool assumes) for each nuisance parameter of its rig: the
     value a fitted one's change is measured from (the JSON's mass and initial state, no offsets,
@@ -161,7 +196,7 @@ def stated_values(trace: Trace) -> dict:
     out = dict(MEASUREMENT_DEFAULTS)
     if trace.rig == "payload":
         out.update(m=float(trace.payload_mass_kg), x0=float(trace.initial_displacement_m),
-                   v0=float(trace.initial_velocity_m_s))
+                   v0=float(trace.initial_velocity_m_s), last_reversal_beyond=0.0)
     return out
 
 
@@ -176,6 +211,11 @@ def nuisance_box(trace: Trace, name: str, mass_band: float | None = None) -> tup
         return -math.inf, math.inf, float(trace.measured[0]), "linear"
     if name == "v0":
         return -math.inf, math.inf, _initial_velocity(trace), "linear"
+    if name == "last_reversal_beyond":
+        # a reversal more than the record's span beyond it has slipped every element the record's
+        # motion moves: the record cannot tell it from a nearer one, and a fit would drift there
+        span = float(np.ptp(np.asarray(trace.measured, float)))
+        return -span, span, min(max(_last_reversal_beyond(trace), -span), span), "linear"
     if name == "input_gain":
         return INPUT_GAIN_BOUNDS[0], INPUT_GAIN_BOUNDS[1], 1.0, "log"
     if name in MEASUREMENT:

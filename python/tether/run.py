@@ -355,11 +355,11 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
 
     ``params`` may name any FMU parameter (see :func:`tether.models.check_parameters`); the
     trace's own values for L0, m, g, x0, v0, line_density win. ``nuisance`` (tether.nuisance, e.g. a
-    fit's FitResult.nuisance for this trace): m, x0, v0 over the trace's, and the measurement applied
+    fit's FitResult.nuisance for this trace): m, x0, v0, last_reversal_beyond over the trace's, and the measurement applied
     as the engine applies it (input_gain, offset_input on the input, offset_measured on the
     prediction). Raises SimulationError if the FMU fails and FMUError if it is missing.
     """
-    from .nuisance import drive_input, measured_output
+    from .nuisance import STATE, drive_input, measured_output
 
     nuisance = dict(nuisance or {})
     if not isinstance(trace, Trace):
@@ -385,7 +385,7 @@ def simulate(trace: Trace | str | Path, model: str | ModelSpec = "linear",
                             x0=0.0 if periodic else float(trace.initial_displacement_m),
                             v0=0.0 if periodic else float(trace.initial_velocity_m_s),
                             line_density=float(trace.line_density_kg_m))
-        trace_values.update({k: float(nuisance[k]) for k in ("m", "x0", "v0") if k in nuisance})
+        trace_values.update({k: float(nuisance[k]) for k in ("m", *STATE) if k in nuisance})
     values.update(trace_values)
 
     t = trace.time

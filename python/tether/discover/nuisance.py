@@ -22,7 +22,8 @@ def nuisance_parameters(trace: Trace) -> list[str]:
     """The nuisance parameters every discovery fit of ``trace`` frees, from the start model on, so
     that no effect is credited with what they explain: the offset of the measured column on every
     record; on a forced record that is not periodic the initial state x0, v0 (a record cut out of a
-    longer run starts in motion) and the effective mass m within its band (the trace's
+    longer run starts in motion), with the Iwan bank's memory of that run (last_reversal_beyond, freed
+    only in models with the bank: fitting.fit_model) and the effective mass m within its band (the trace's
     mass_uncertainty_rel, set from --mass-band; 0 = exact, not freed), or the force gain instead
     where force_gain_known is false (m and the gain are one nuisance in two forms); on a free
     vibration x0 (its release point, read off a column that carries the offset) but not m, which a
@@ -31,7 +32,7 @@ def nuisance_parameters(trace: Trace) -> list[str]:
     names = ["offset_measured"]
     periodic = bool(trace.periodic_samples)
     if trace.rig == "payload" and not periodic:
-        names += ["x0", "v0"] if trace.experiment == "forced" else ["x0"]
+        names += ["x0", "v0", "last_reversal_beyond"] if trace.experiment == "forced" else ["x0"]
     form = NZ.mass_form(trace)
     if form:
         names.append(form)
@@ -87,6 +88,9 @@ def nuisance_section(trace: Trace, fit: ModelFit, freed: bool = True) -> dict:
                      "moved": bool(not lo <= s <= hi) if known else None}
     band = NZ.mass_band_rel(trace) if trace.rig == "payload" else None
     kept = nuisance_not_freed(trace) if freed else {n: NOT_ASKED for n in _record_nuisance(trace)}
+    if freed:
+        kept.update({n: f"at its default: {why}" for n in nuisance_parameters(trace)
+                     if (why := NZ.law_refusal(n, fit.spec.hysteresis)) is not None})
     return {"parameters": params, "not_freed": kept,
             "mass_band_rel": band,
             "mass_band_kg": ([float(trace.payload_mass_kg) * (1 - band), float(trace.payload_mass_kg) * (1 + band)]
