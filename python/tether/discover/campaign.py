@@ -107,7 +107,9 @@ class Campaign:
         every = search_thinning(trace, noise.sigma, samples)
         searched = thinned(trace, every) if every > 1 else trace
         part = _truncated(searched, CRITERIA.fit_part)
-        nuisance = tuple(nuisance_parameters(trace)) if free_nuisance else ()
+        # (a hysteresis law's memory, NZ.HYSTERESIS_STATE, is a record's nuisance only in models with
+        # that law: the campaign's joint fits and counts of parameters do not follow the law yet)
+        nuisance = tuple(n for n in nuisance_parameters(trace) if n not in NZ.HYSTERESIS_STATE) if free_nuisance else ()
         self.say(f"{trace.name} ({trace.experiment}, {len(trace.time)} samples): noise {noise.sigma:.3g} m "
                  f"({noise.method})" + (f"; searched on every {ordinal(every)} sample ({len(searched.time)})"
                                         if every > 1 else ""))
