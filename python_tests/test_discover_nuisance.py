@@ -58,7 +58,7 @@ def test_a_hidden_mass_and_an_offset_are_not_named_as_effects(slack_forced, run_
     assert lo <= nz["offset_measured"] <= hi
     assert "nuisance m:" in stdout and "moved" in stdout
     assert set(doc["nuisance"]["not_freed"]) == {"offset_input", "last_reversal_beyond"}
-    assert "iwan" in doc["nuisance"]["not_freed"]["last_reversal_beyond"]
+    assert "starts at rest" in doc["nuisance"]["not_freed"]["last_reversal_beyond"]
     # the --params part of the record holds the model's own parameters only
     assert not set(doc["parameters"]) & {"m", "x0", "v0", "offset_measured"}
 
@@ -90,13 +90,29 @@ def test_which_nuisance_parameters_discovery_frees(tmp_path):
     fv, fo, lu = (read_trace(s) for s in (fv, fo, lu))
     assert D.nuisance_parameters(fv) == ["offset_measured", "x0"]
     assert "m" in D.nuisance_not_freed(fv) and "scales with" in D.nuisance_not_freed(fv)["m"]
-    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "last_reversal_beyond", "m"]
+    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "m"]
     assert D.nuisance_parameters(lu) == ["offset_measured"]
     assert "offset_input" in D.nuisance_not_freed(lu)
     fo.force_gain_known = False
-    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "last_reversal_beyond", "input_gain"]
+    assert D.nuisance_parameters(fo) == ["offset_measured", "x0", "v0", "input_gain"]
     fo.force_gain_known, fo.mass_uncertainty_rel = True, 0.0
     assert "m" not in D.nuisance_parameters(fo)
+
+
+@pytest.mark.parametrize("seed", [21, 22, 23])
+def test_the_bank_memory_is_freed_on_records_that_start_in_motion(tmp_path, seed):
+    """The same forced record with hysteresis, once from rest and once cut 3 s into a longer run:
+    the Iwan bank's memory of that run (last_reversal_beyond) is freed on the second only, and the
+    first says why not."""
+    kw = dict(noise=1e-4, rate=200.0, duration_s=8.0, nuisance=True, mass_factor=1.2, offset_noise=3.0)
+    rest, _ = _write(tmp_path, "rest", "forced", {"hysteresis"}, seed, preroll_s=0.0, **kw)
+    cut, meta = _write(tmp_path, "cut", "forced", {"hysteresis"}, seed, preroll_s=3.0, **kw)
+    rest, cut = read_trace(rest), read_trace(cut)
+    assert meta.meta["hidden"]["nuisance"]["in_motion"]
+    assert "last_reversal_beyond" not in D.nuisance_parameters(rest)
+    assert "starts at rest" in D.nuisance_not_freed(rest)["last_reversal_beyond"]
+    assert "last_reversal_beyond" in D.nuisance_parameters(cut)
+    assert "last_reversal_beyond" not in D.nuisance_not_freed(cut)
 
 
 @pytest.mark.parametrize("experiment,seed", [("free_vibration", 11), ("forced", 12), ("forced", 13)])

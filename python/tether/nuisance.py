@@ -154,39 +154,41 @@ def mass_form(trace: Trace) -> str | None:
     return None if trace.mass_uncertainty_rel == 0 else "m"
 
 
-def _initial_velocity(trace: Trace) -> float:
-    """The slope of the measured column at its start: a quadratic through the samples of the
-    first twentieth of the record's dominant period (at least 5 samples)."""
+#: an initial velocity this many standard errors from zero is motion, not noise (starts_in_motion)
+MOTION_STANDARD_ERRORS = 5.0
+#: a record started at rest begins at its balance, within this share of its half-swing of its mean
+#: (docs/nuisance-discovery.md: how it was chosen)
+AWAY_FROM_REST = 0.05
+
+
+def _initial_slope(trace: Trace) -> tuple[float, float]:
+    """The slope of the measured column at its start and its standard error: a quadratic through
+    the samples of the first twentieth of the record's dominant period (at least 5 samples)."""
+    from .fit.kinematics import dominant_frequency
+
     t = np.asarray(trace.time, float)
     y = np.asarray(trace.measured, float)
     dt = float(np.median(np.diff(t)))
-    spec = np.abs(np.fft.rfft((y - y.mean()) * np.hanning(len(y))))
-    spec[0] = 0.0
-    f = float(np.fft.rfftfreq(len(y), dt)[int(np.argmax(spec))]) or 1.0 / (t[-1] - t[0])
+    f = dominant_frequency(t, y)
     n = min(len(t), max(5, int(round(1.0 / (20.0 * f * dt)))))
-    c = np.polyfit(t[:n] - t[0], y[:n], 2)
-    return float(c[1])
+    c, cov = np.polyfit(t[:n] - t[0], y[:n], 2, cov="unscaled" if n <= 3 else True)
+    return float(c[1]), float(math.sqrt(max(cov[1, 1], 0.0)))
 
 
-def _last_reversal_beyond(trace: Trace) -> float:
-    """How far beyond the span [-|x0|, |x0|] (x0 the record's start) the motion before the record
-    last reversed (physics/tether.c: last_reversal), from the record itself: its first extremum (where it has come back from
-    its running extreme by three sample-to-sample noise levels) mirrored about its mean, as a
-    record cut out of a steady run swings about as far each way; 0 where it has no extremum or the
-    mirror lies inside the span. Displacements from the balance are read as the measured column
-    less its mean."""
+def _initial_velocity(trace: Trace) -> float:
+    """The slope of the measured column at its start (_initial_slope)."""
+    return _initial_slope(trace)[0]
+
+
+def starts_in_motion(trace: Trace) -> bool:
+    """Whether the record was cut out of a longer run rather than started at rest: its initial
+    velocity differs from zero by MOTION_STANDARD_ERRORS of its standard errors or more, or its
+    first sample lies AWAY_FROM_REST of its half-swing or more from its mean (a cut near a
+    reversal, where the velocity is small)."""
+    v, se = _initial_slope(trace)
     y = np.asarray(trace.measured, float)
-    y = y - np.mean(y)
-    back = 3.0 * float(np.std(np.diff(y))) / math.sqrt(2.0)
-    direction = 1.0 if _initial_velocity(trace) >= 0.0 else -1.0
-    extreme = y[0]
-    for v in y[1:]:
-        if direction * (v - extreme) > 0.0:
-            extreme = v
-        elif direction * (extreme - v) > back:
-            x_r, x0 = -float(extreme), abs(float(y[0]))
-            return x_r - x0 if x_r > x0 else (x_r + x0 if x_r < -x0 else 0.0)
-    return 0.0
+    half_swing = 0.5 * float(np.ptp(y))
+    return abs(v) >= MOTION_STANDARD_ERRORS * se or abs(y[0] - float(np.mean(y))) >= AWAY_FROM_REST * half_swing
 
 
 def stated_values(trace: Trace) -> dict:
@@ -214,8 +216,10 @@ def nuisance_box(trace: Trace, name: str, mass_band: float | None = None) -> tup
     if name == "last_reversal_beyond":
         # a reversal more than the record's span beyond it has slipped every element the record's
         # motion moves: the record cannot tell it from a nearer one, and a fit would drift there
+        # (from 0, the monotone displacement: where the record cannot tell a reversal from none, as
+        # at a start at rest, the fit stays there; docs/nuisance-discovery.md)
         span = float(np.ptp(np.asarray(trace.measured, float)))
-        return -span, span, min(max(_last_reversal_beyond(trace), -span), span), "linear"
+        return -span, span, 0.0, "linear"
     if name == "input_gain":
         return INPUT_GAIN_BOUNDS[0], INPUT_GAIN_BOUNDS[1], 1.0, "log"
     if name in MEASUREMENT:

@@ -32,7 +32,9 @@ def nuisance_parameters(trace: Trace) -> list[str]:
     names = ["offset_measured"]
     periodic = bool(trace.periodic_samples)
     if trace.rig == "payload" and not periodic:
-        names += ["x0", "v0", "last_reversal_beyond"] if trace.experiment == "forced" else ["x0"]
+        names += ["x0", "v0"] if trace.experiment == "forced" else ["x0"]
+        if trace.experiment == "forced" and NZ.starts_in_motion(trace):
+            names.append("last_reversal_beyond")
     form = NZ.mass_form(trace)
     if form:
         names.append(form)
@@ -44,7 +46,7 @@ def nuisance_not_freed(trace: Trace) -> dict:
     record's rig that nuisance_parameters leaves out."""
     freed = nuisance_parameters(trace)
     out = {}
-    for n in (("m", "x0", "v0", "input_gain") if trace.rig == "payload" else ()) + ("offset_input",):
+    for n in (("m", "x0", "v0", "last_reversal_beyond", "input_gain") if trace.rig == "payload" else ()) + ("offset_input",):
         if n in freed or (n == "input_gain" and trace.force_gain_known) or (n == "offset_input" and trace.input is None):
             continue
         why = NZ.refusal(trace, n, freed)
@@ -55,6 +57,11 @@ def nuisance_not_freed(trace: Trace) -> dict:
             why = "the force gain is known (force_gain_known); the effective mass m is freed instead"
         if why is None and n == "v0":
             why = "a free vibration is released at rest"
+        if why is None and n == "last_reversal_beyond":
+            why = ("the record starts at rest (its initial velocity is within "
+                   f"{NZ.MOTION_STANDARD_ERRORS:g} standard errors of zero): the Iwan bank starts unloaded, as the "
+                   "record's first displacement leaves it" if trace.experiment == "forced" else
+                   "a free vibration is released from a monotone pull, which leaves the Iwan bank as the model starts it")
         if why is not None:
             out[n] = why
     return out
