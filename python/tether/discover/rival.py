@@ -46,6 +46,14 @@ def _law_converted(params: dict, law: str, rival: dict, L0: float) -> dict:
     return {n: float(v) for n, v in zip(IWAN_K, kr * (A * L0 / kr.sum()))}
 
 
+def _estimated(trace: Trace, spec) -> dict:
+    """tether.fit's data-based estimate of ``spec``'s parameters on ``trace``: a rival law's terms
+    where its fit in the step that named the effect failed."""
+    from ..fit import initial_estimate
+
+    return {k: float(v) for k, v in initial_estimate([trace], spec).items() if not k.startswith("_")}
+
+
 def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
               rivals: dict, added: Sequence[str], say: Callable[[str], None], elastic_reshaped: bool = False):
     """An effect's law is chosen in the step that names the effect, beside the effects named so far;
@@ -61,7 +69,8 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     judge, CRITERIA.shape_heldout_informative, as for the shape terms). Starts: the rival's own fit, with the
     final model's elastic law or its own; the rival matched to the fitted law's stiffness and force;
     tether.fit's data-based estimate of the whole model. ``rivals``: the rival fits' parameters
-    of the hysteresis step, by law. ``elastic_reshaped``: the elastic law's shape was refined after
+    of the hysteresis step, by law; where the rival's fit failed there, its terms come from
+    tether.fit's data-based estimate instead (a failed short fit is no verdict on a law). ``elastic_reshaped``: the elastic law's shape was refined after
     the hysteresis step (its power term kept): the rival is fitted then too, whatever was named
     last, for the law was chosen beside a cubic that the power term has replaced (the generator's
     power-law tether with Iwan friction: Bouc-Wen won beside the cubic, 2.86 against 2.87 x noise,
@@ -77,12 +86,11 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
             or (named_last and not elastic_reshaped and not still_missing)):
         return cur, cur_held, None
     other = next(x for x in laws if x != law)
-    if other not in rivals:
-        return cur, cur_held, None
     new = replace(cur.spec, hysteresis=other).for_experiment(trace.experiment)
+    rival = rivals.get(other) or _estimated(trace, new)
     mine = {k: v for k, v in cur.params.items() if k in new.parameters and k not in HYSTERESIS_PARAMETERS[law]}
-    theirs = {k: v for k, v in rivals[other].items() if k in HYSTERESIS_PARAMETERS[other]}
-    their_elastic = {k: v for k, v in rivals[other].items() if k in ELASTIC_PARAMETERS and k in new.parameters}
+    theirs = {k: v for k, v in rival.items() if k in HYSTERESIS_PARAMETERS[other]}
+    their_elastic = {k: v for k, v in rival.items() if k in ELASTIC_PARAMETERS and k in new.parameters}
     starts = [{**mine, **theirs},
               {**mine, **theirs, **their_elastic},
               {**mine, **theirs, **_law_converted(cur.params, law, theirs, float(trace.length_m))},
