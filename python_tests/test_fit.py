@@ -320,3 +320,23 @@ def test_iwan_fit_of_a_load_test_with_hidden_friction(tmp_path, capsys):
     assert estimate_noise(tr).sigma == pytest.approx(sigma, rel=0.2)
     assert iw.rms < 0.5 * bw.rms
     assert iw2.rms <= 1.3 * sigma
+
+
+def test_the_estimate_of_a_bank_that_takes_all_the_stiffness_is_a_valid_model(tmp_path):
+    """The generator's forced record with Iwan friction and slack of the nuisance family's seed 7
+    (record 29): fitted without slack, the equation error gives the bank all the stiffness and
+    the elastic law a negative one (EA -624 N before the fix), a model the engine refuses, so every
+    fit from the estimate failed. The estimate keeps the linear start's stiffness there, and the
+    engine simulates it."""
+    import hidden_effects as he
+    from tether.fit.experiments import trace_experiment
+    from tether.models import parse_model
+
+    name, kw = next(s for s in he.nuisance_specs(24, 7) if s[0].startswith("29_"))
+    he.generate(**kw).write(tmp_path, name)
+    tr = read_trace(tmp_path / name)
+    spec = parse_model("linear+iwan", "forced")
+    est = {k: v for k, v in initial_estimate([tr], spec).items() if not k.startswith("_")}
+    assert est["EA"] > 0, est["EA"]
+    y = idn.simulate(trace_experiment(tr, spec, {}).exp, est)
+    assert np.all(np.isfinite(y))

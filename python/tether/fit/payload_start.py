@@ -159,4 +159,5 @@ def _elastic_start(k: list[float], spec: ModelSpec, cubic: bool, k_lin: float, L
         if a is None or not a["a1"] > 0:
             a = {"a1": k_lin * L0}            # no consistent balance: the linear part only
         return a
-    return {"EA": k[0] * L0}
+    # (a bank or a damping that took up all the stiffness leaves no valid law: the linear start's)
+    return {"EA": (k[0] if k[0] > 0 else k_lin) * L0}
