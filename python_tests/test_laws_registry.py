@@ -189,3 +189,17 @@ def test_only_the_iwan_bank_has_reseeding_moves_and_each_is_a_move_of_rival():
     assert set(moves) == {"iwan"}
     assert [m for m, _ in moves["iwan"]] == ["restart_idle_elements", "finer_bank"]
     assert all(callable(getattr(rival, m)) and what for m, what in moves["iwan"])
+
+
+def test_the_reseed_stage_asks_the_registry_for_the_named_laws_moves():
+    """The reseed stage's laws: the Iwan bank of a model that names hysteresis; none for Bouc-Wen;
+    none, and no error, for a start model whose nonlinear stiffness is Kawabata's branches (its
+    elastic law, linear, has no entry)."""
+    def named(spec):
+        return search.Search.reseeded_laws(types.SimpleNamespace(cur=_base(spec, {})))
+
+    iwan = named(ModelSpec(hysteresis="iwan", slack=True))
+    assert [(e, law.name) for e, law in iwan] == [("hysteresis", "iwan")]
+    assert named(ModelSpec(hysteresis="boucwen", stiffness="cubic")) == []
+    kaw = ModelSpec(hysteresis="kawabata", rig="element")
+    assert kaw.effects == ["nonlinear_stiffness", "hysteresis"] and named(kaw) == []

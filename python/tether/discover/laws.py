@@ -58,9 +58,10 @@ class Effect:
     switch: str | None = None
     leads: tuple = ()
 
-    def law(self, name: str) -> Law:
-        """The entry of the law ``name``."""
-        return next(law for law in self.laws if law.name == name)
+    def law(self, name: str | None) -> Law | None:
+        """The entry of the law ``name``; None where the registry has none of that name (the linear
+        law of a model whose nonlinear stiffness is Kawabata's branches)."""
+        return next((law for law in self.laws if law.name == name), None)
 
     def law_in(self, spec: ModelSpec) -> str | None:
         """The law of this effect in ``spec``, None where ``spec`` lacks the effect (a switch-only
@@ -197,7 +198,7 @@ def added_law(old: ModelSpec, new: ModelSpec) -> tuple[Law, str | None] | None:
     added = []
     for e in EFFECTS:
         was, now = e.law_in(old), e.law_in(new)
-        if now is not None and now != was and (was is None or not e.switch):
+        if now is not None and now != was and (was is None or not e.switch) and e.law(now) is not None:
             added.append((e.law(now), was))
     return next((a for a in added if a[1] in dict(a[0].starts_from)), added[0] if added else None)
 

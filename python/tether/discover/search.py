@@ -574,7 +574,7 @@ class Search:
     def reseeded_laws(self) -> list:
         """(effect, Law) of the named laws that have reseeding moves (Law.reseed)."""
         laws = [(e, EFFECT[e].law(_law_of(self.cur.spec, e))) for e in self.cur.effects if e in LAW_FIELD]
-        return [(e, law) for e, law in laws if law.reseed]
+        return [(e, law) for e, law in laws if law is not None and law.reseed]
 
     def reseedable(self) -> bool:
         """A named law has reseeding moves, the model misses the record by CRITERIA.iwan_stages_gap or
