@@ -5,12 +5,13 @@ frees and their floors. EFFECTS is the registry of issue 25; the tables are view
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
 from ..models import IWAN_EPS, IWAN_EPS_FIT, IWAN_K, ModelSpec
 from ..traces import EXPERIMENTS, Trace
+from . import starts as S
 from .scales import _Scales
 
 
@@ -22,14 +23,23 @@ class Law:
     for effects keeps them at the classic law's values: they change a law's shape, not which
     effects the record shows); ``rival`` the law fitted again in its place at the end (rival_law);
     ``wider`` the law fitted in its place where the final model still misses the record
-    (wider_law); ``added`` false for a law reached only as another's rival or wider law."""
+    (wider_law); ``added`` false for a law reached only as another's rival or wider law;
+    ``starts`` the starts of a model that adds the law (base fit, new spec, scales, trace -> a list
+    of parameter dicts, None for tether.fit's data-based estimate; see starts.candidate_starts),
+    ``starts_from`` those of a model that puts it in another law's place, as (that law, starts);
+    ``reseed`` the moves that reseed the law's fitted terms where the final model still misses the
+    record, as (function of rival.py, what it does: the stage's words).
+    A switch without a law (slack) has one law, named as its effect, for its starts."""
 
     name: str
+    starts: Callable
     rigs: tuple | None = None
     shapes: tuple = ()
     rival: str | None = None
     wider: str | None = None
     added: bool = True
+    starts_from: tuple = ()
+    reseed: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -48,6 +58,21 @@ class Effect:
     switch: str | None = None
     leads: tuple = ()
 
+    def law(self, name: str | None) -> Law | None:
+        """The entry of the law ``name``; None where the registry has none of that name (the linear
+        law of a model whose nonlinear stiffness is Kawabata's branches)."""
+        return next((law for law in self.laws if law.name == name), None)
+
+    def law_in(self, spec: ModelSpec) -> str | None:
+        """The law of this effect in ``spec``, None where ``spec`` lacks the effect (a switch-only
+        effect's law is named as the effect)."""
+        if self.switch and not getattr(spec, self.switch):
+            return None
+        if self.law_field is None:
+            return self.name
+        law = getattr(spec, self.law_field)
+        return law if self.switch or law != self.absent else None
+
 
 _QUASI_STATIC = ("load", "element")
 _HOURS = "creep acts over minutes to hours under a held load: it cannot show in this record"
@@ -60,41 +85,44 @@ EFFECTS = (
         # the cubic's power term: a stiffness growing from zero as a fractional power of the strain,
         # which the cubic misses near eps = 0 (a load test of the generator's power-law tether with
         # Iwan friction stopped at 2.05 x noise with the cubic)
-        Law("cubic", shapes=(("pow_F", "pow_n"),), wider="exponential"),
+        Law("cubic", S.cubic_starts, shapes=(("pow_F", "pow_n"),), wider="exponential"),
         # in a load test the exponential law is a candidate too: a Bouc-Wen force with beta = 0 and
         # gamma < 0 is that law in disguise (dz/dx = A + |gamma| z both ways: z = (A/|gamma|)
         # (exp(|gamma| x) - 1)), and with one parameter fewer it would name hysteresis for a
         # stiffness the cubic misses (an exponential tether's load test: hysteresis named at 1.01 x
         # noise, bench/wider_laws_discovery.py)
-        Law("exponential", rigs=_QUASI_STATIC)),
+        Law("exponential", S.estimate_start, rigs=_QUASI_STATIC)),
         {}),
     Effect("hysteresis", "hysteresis", "none", (
-        Law("boucwen", shapes=(("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
-                               ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")), rival="iwan"),
+        Law("boucwen", S.boucwen_starts, shapes=(("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
+                                                 ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")),
+            rival="iwan", starts_from=(("kawabata", S.boucwen_from_kawabata_starts),)),
         # Bouc-Wen's tangent stiffness approaches zero exponentially, inter-fibre friction's falls
         # to zero at a finite strain: on records of the latter Bouc-Wen left 3.4-10 x noise
         # (bench/hysteresis_law_gap.py). Its shape: the slip strains off the fit's grid (a load test
         # of twelve elements slipping between 4e-4 and 8e-3: 3.7 x noise on the grid, 1.2 x free)
-        Law("iwan", shapes=(IWAN_EPS_FIT,), rival="boucwen"),
+        Law("iwan", S.estimate_start, shapes=(IWAN_EPS_FIT,), rival="boucwen",
+            reseed=(("restart_idle_elements", "the idle Iwan elements were restarted"),
+                    ("finer_bank", "the Iwan bank was made finer"))),
         # the paper's loading and unloading branches, which replace the elastic law (their loading
         # curve is a power law)
-        Law("kawabata", rigs=_QUASI_STATIC)),
+        Law("kawabata", S.estimate_start, rigs=_QUASI_STATIC)),
         {}),
     Effect("nonlinear_damping", "damping", "viscous", (
         # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
-        Law("displacement", shapes=(("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
+        Law("displacement", S.damping_starts, shapes=(("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
                                      "c_table_6"),)),),
         {"load_unload": "a load test is quasi-static (no inertia, speeds near zero): damping, linear or not, "
                         "does not act in it",
          "creep": "a creep test holds its loads for hours and changes them between two samples: damping acts on "
                   "no sample"}),
     Effect("creep", "creep_law", "kelvin_slip", (
-        Law("kelvin_slip", wider="primary"),
-        Law("primary", added=False)),
+        Law("kelvin_slip", S.creep_starts, wider="primary"),
+        Law("primary", S.creep_starts, added=False)),
         {"free_vibration": "a free vibration lasts seconds, and " + _HOURS,
          "forced": "a forced vibration lasts seconds, and " + _HOURS},
         switch="creep", leads=("creep",)),
-    Effect("slack", None, None, (),
+    Effect("slack", None, None, (Law("slack", S.slack_starts),),
            {"load_unload": "the load of a load test is never below zero: " + _NEVER_COMPRESSED,
             "creep": "the load of a creep test is never below zero: " + _NEVER_COMPRESSED},
            switch="slack"),
@@ -161,8 +189,18 @@ def _with_law(spec: ModelSpec, effect: str, law: str) -> ModelSpec:
     return replace(spec, **{LAW_FIELD[effect]: law})
 
 
-#: knots of the FMU's damping table c_table_1..6
-DAMPING_TABLE_KNOTS = 6
+def added_law(old: ModelSpec, new: ModelSpec) -> tuple[Law, str | None] | None:
+    """The law ``new`` adds to ``old`` (a law that ``old`` lacks, or an effect ``old`` lacks; an
+    effect behind a switch only where the switch comes on) and the law of its effect that ``old``
+    had (None: none). Where several are added (Kawabata's branches replaced by a cubic law under a
+    Bouc-Wen force, _kawabata_split), the one whose ``starts_from`` names the law ``old`` had, else
+    the first in the registry's order; None where ``new`` adds no law."""
+    added = []
+    for e in EFFECTS:
+        was, now = e.law_in(old), e.law_in(new)
+        if now is not None and now != was and (was is None or not e.switch) and e.law(now) is not None:
+            added.append((e.law(now), was))
+    return next((a for a in added if a[1] in dict(a[0].starts_from)), added[0] if added else None)
 
 
 def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:

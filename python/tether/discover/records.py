@@ -93,6 +93,7 @@ class Discovery:
     refinements: list = field(default_factory=list)  # shape terms tried at the end (Refinement)
     searched_every: int = 1         # the search ran on every k-th sample (search_thinning)
     nuisance_freed: bool = True     # every fit freed the record's nuisance parameters
+    stages: list = field(default_factory=list)  # the search plan's stages that ran, in order (plan.PLAN)
 
     @property
     def final(self) -> ModelFit:

@@ -235,6 +235,12 @@ def bank_cap_factor(elements: int) -> float:
     return max(1.0, elements / len(IWAN_K_FIT))
 
 
+def reseeded_cap_factor(m: ModelFit) -> float:
+    """The time caps of the shape fits beside ``m``'s reseeded Iwan bank (bank_cap_factor of the
+    elements ``m`` frees; 1 without a bank)."""
+    return bank_cap_factor(sum(1 for k in IWAN_K if k in m.free))
+
+
 def _finer_spread(k: np.ndarray, e: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray] | None:
     """A finer bank of ``size`` elements from the bank (stiffnesses ``k``, slip strains ``e``) that
     spreads its friction: each live element (IWAN_IDLE_SHARE of the stiffness or more) split in two

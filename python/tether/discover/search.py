@@ -12,20 +12,22 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..blas import in_one_blas_thread
-from ..models import IWAN_K, parse_model
+from ..models import parse_model
 from ..traces import Trace
 from .document import _evidence, _slack_seen_by, ordinal
 from .evidence import disagreement, regime_table, regimes, signatures
 from .fitting import _heldout, _side_by_side, DEFAULT_BUDGET, fit_model, ModelFit, predict, SECOND_SEARCH_CAP_SHARE
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, bic_change,
                     full_data_verdict, heldout_verdict)
-from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, RIVAL_LAWS
+from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
+from .plan import PLAN
 from ..noise import estimate_noise
 from .nuisance import nuisance_parameters, nuisance_start
 from .. import nuisance as NZ
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Retest, Step
 from .refine import _knots_unseen, _shape_groups, refine_shapes
-from .rival import IWAN_STAGE_CAP_FACTOR, bank_cap_factor, finer_bank, restart_idle_elements, rival_law, wider_law
+from . import rival
+from .rival import IWAN_STAGE_CAP_FACTOR
 from .samples import _truncated, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
 from .scales import _scales
 from .starts import _damping_table_starts, _reduced_starts, candidate_starts
@@ -127,6 +129,10 @@ class Search:
         self.refinements: list[Refinement] = []
         self.rivals: dict = {}           # effect -> {law: parameters of its candidate's fit}
         self.retested_at = 0             # len(refinements) when the named effects were last re-tested
+        self.search_again = False        # the plan's second search for effects is due (refine_shapes_first)
+        self.effects_before_again = ()   # the named effects when the second search began
+        self.rival_kept = False          # the rival law was kept (swap_rival)
+        self.stages: list[str] = []      # the plan's stages run so far, in order
         self.stop = ""
         self.fit_start_model()
 
@@ -204,63 +210,67 @@ class Search:
         self.cur, self.cur_held = m, held
         self.fits.append(m)
 
-    # ---- the run
+    # ---- the run: the plan's stages in turn (plan.PLAN)
     def run(self) -> Discovery:
-        for sweep in (1, 2):
-            if not self.sweep(sweep):
-                break
-        self.last_stages()
-        self.retest_after_refinements()
-        self.final_fit()
+        """Each stage of the plan whose condition holds, in the plan's order: its proposer proposes,
+        has each proposal judged, adopts or refuses it and records it."""
+        for stage in PLAN:
+            if stage.when(self):
+                getattr(self, stage.proposer)()
+                self.stages.append(stage.name)
         return Discovery(trace=self.whole, noise=self.noise, start_model=self.spec.canonical, fits=self.fits,
                          steps=self.steps, stop_reason=self.stop, seconds=time.perf_counter() - self.t_begin,
                          heldout_start=float(self.trace.time[self.first]), removals=self.removals,
                          refinements=self.refinements, searched_every=self.every,
-                         nuisance_freed=bool(self.nuisance))
+                         nuisance_freed=bool(self.nuisance), stages=self.stages)
 
-    def sweep(self, sweep: int) -> bool:
-        """The search for effects step by step, then the shapes of the named laws. True where a
-        shape was kept in the first sweep and the refined model still misses the record by the
-        noise or more (CRITERIA.unexplained_gap): a law of the wrong shape can hide a further
-        effect behind its own misfit (a drag-damped record with slack was named nonlinear damping
-        alone at 3-12 x noise), so the search runs once more from the refined model, its shape
-        terms free."""
-        self.fit_cap = self.cap if sweep == 1 else SECOND_SEARCH_CAP_SHARE * self.cap
-        effects_before = self.cur.effects
+    def search_effects(self, cap_share: float = 1.0) -> None:
+        """The search for effects, step by step until it stops, its fits capped at ``cap_share`` of
+        the search's cap."""
+        self.fit_cap = cap_share * self.cap
         while self.step():
             pass
         self.fit_cap = self.cap
-        refined_effects = {r.effect for r in self.refinements if r.accepted}
-        if self.budget_hit or (sweep == 2 and self.cur.effects == effects_before
-                               and not _shape_groups(self.cur, skip=refined_effects)):
-            return False
-        # (in the second sweep with no new effect: the laws not refined yet, from the refined model;
-        # docs/discovery.md, "The search, step by step")
-        refined, refined_held, refs = refine_shapes(self.trace, self.part, self.first, self.cur, self.cur_held,
-                                                    self.sigma, self.shape_fit, self.sc, self.say, skip=refined_effects)
-        self.refinements += refs
-        if self.budget_hit:
-            _not_kept_for_budget(refs)
-            self.stop += "; " + self.out_of_budget("while the shapes of the laws were refined")
-            return False
-        if refined is self.cur:
-            return False
-        self.fits.append(refined)
-        self.cur = refined
-        if sweep == 2 or _gap(self.cur.rms, self.sigma) < CRITERIA.unexplained_gap * self.sigma:
-            # (a further effect must halve the gap: below the noise itself, what is left is too
-            # little to hide one; docs/discovery.md, "The search, step by step")
-            if math.isfinite(refined_held):
-                self.cur_held = refined_held
-            return False
-        self.free_shapes(tuple(k for r in refs if r.accepted for k in r.parameters))
-        if not math.isfinite(refined_held):
+
+    def refine_shapes_first(self) -> None:
+        """The shapes of the named laws; where one is kept and the refined model still misses the
+        record by the noise or more (CRITERIA.unexplained_gap), the search runs once more
+        (search_again): a law of the wrong shape can hide a further effect behind its own misfit (a
+        drag-damped record with slack was named nonlinear damping alone at 3-12 x noise), and below
+        the noise too little is left to hide one (a further effect must halve the gap)."""
+        before = len(self.refinements)
+        held = self.reshape(self.refined_effects(), where="while the shapes of the laws were refined")
+        if held is None or _gap(self.cur.rms, self.sigma) < CRITERIA.unexplained_gap * self.sigma:
+            return
+        self.free_shapes(tuple(k for r in self.refinements[before:] if r.accepted for k in r.parameters))
+        if not math.isfinite(held):
             # (where refine_shapes asked, its fit of the first part was this one: same terms, same start)
-            refined_held = self.heldout_of(self.cur)
-        self.cur_held = refined_held
+            self.cur_held = self.heldout_of(self.cur)
         self.say(f"searching again from the refined model ({' '.join(self.shape_free)} free): RMS error "
                  f"{self.cur.rms / self.sigma:.2f} x noise")
-        return True
+        self.search_again = True
+
+    def search_effects_again(self) -> None:
+        """The second search for effects, from the refined model, its shape terms free and its fits
+        capped at SECOND_SEARCH_CAP_SHARE of the search's cap."""
+        self.effects_before_again = self.cur.effects
+        self.search_effects(SECOND_SEARCH_CAP_SHARE)
+
+    def refine_shapes_again(self) -> None:
+        """The shapes of the laws not refined yet, from the model of the second search."""
+        self.reshape(self.refined_effects(), where="while the shapes of the laws were refined")
+
+    def refined_effects(self) -> set:
+        """The effects whose law's shape a kept refinement changed."""
+        return {r.effect for r in self.refinements if r.accepted}
+
+    def named_again(self) -> bool:
+        """The second search changed the named effects."""
+        return self.cur.effects != self.effects_before_again
+
+    def shapes_left(self) -> bool:
+        """A named law has shape groups, and its effect no kept refinement yet."""
+        return bool(_shape_groups(self.cur, skip=self.refined_effects()))
 
     def free_shapes(self, terms: tuple) -> None:
         """Shape terms kept free in every later fit, the terms they replace held."""
@@ -511,27 +521,17 @@ class Search:
         its grid of slip strains, whose strains were freed and idle elements restarted after it).
         The effects whose own law changed are not tested: a better law only adds to what they earn.
         Removed one at a time, the rest tested again after each removal."""
-        changed = {r.effect for r in self.refinements[self.retested_at:] if r.accepted}
+        changed = self.laws_changed()
         beside = "the refined laws (" + ", ".join(sorted(changed)) + ")"
         while changed and not self.budget_hit and self.retest(
                 [x for x in self.cur.effects if x not in self.base_effects and x not in changed], beside, beside):
             pass
 
-    # ---- the last stages: the Iwan bank, the rival law, the whole record
-    def last_stages(self) -> None:
-        """The bank at its best before its rival law is fitted in its place (the rival is judged
-        against the bank its restart and a finer bank make of it), then the rival law, then the
-        bank's stages again where the rival law put a bank in."""
-        if self.cur.spec.hysteresis == "iwan":
-            self.iwan_stages()
-        swapped = False
-        if not self.budget_hit and "hysteresis" in self.rivals:
-            swapped = self.swap_rival()
-        if swapped and self.cur.spec.hysteresis == "iwan":
-            self.iwan_stages()
-        if not self.budget_hit:
-            self.swap_wider_laws()
+    def laws_changed(self) -> set:
+        """The effects whose law a kept refinement changed after the last step's re-tests."""
+        return {r.effect for r in self.refinements[self.retested_at:] if r.accepted}
 
+    # ---- the last stages: the laws' reseeding moves, the rival law, the wider laws, the whole record
     def adopt(self, result, where: str) -> bool:
         """A last stage's (model, held-out error, record or list of records): kept on record, and the
         model taken unless the time budget ran out during the stage."""
@@ -547,52 +547,70 @@ class Search:
         self.adopt_model(new, held)
         return True
 
-    def reshape(self, skip, cap_factor: float = 1.0) -> None:
+    def reshape(self, skip, cap_factor: float = 1.0, where: str | None = None) -> float | None:
         """The shape groups of refine_shapes from the current model, the effects in ``skip`` left out;
-        the result taken unless the time budget ran out during the stage."""
+        the result taken unless the time budget ran out during the stage (then, with ``where``, the
+        stop reason says so). Returns the refined model's held-out error (NaN where refine_shapes
+        did not ask for it) where one was taken, else None."""
         refined, refined_held, refs = refine_shapes(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, extra, own_thread=False: self.shape_fit(tr, sp, eff, starts, extra, own_thread,
                                                                                 cap_factor),
             self.sc, self.say, skip=skip)
+        self.refinements.extend(refs)
         if self.budget_hit:
             _not_kept_for_budget(refs)
-            refined = self.cur
-        self.refinements.extend(refs)
-        if refined is not self.cur:
-            self.fits.append(refined)
-            self.cur = refined
-            if math.isfinite(refined_held):
-                self.cur_held = refined_held
+            if where:
+                self.stop += "; " + self.out_of_budget(where)
+            return None
+        if refined is self.cur:
+            return None
+        self.fits.append(refined)
+        self.cur = refined
+        if math.isfinite(refined_held):
+            self.cur_held = refined_held
+        return refined_held
 
-    def iwan_stages(self) -> None:
-        """An Iwan bank's last stages: its idle elements restarted, then a finer bank (each a no-op
-        for another law), where the bank misses the record by CRITERIA.iwan_stages_gap or more.
-        Where either is kept and the bank still misses the record so, the other laws' shape groups
-        are tried again beside the new bank, its terms free (docs/discovery.md, "The search")."""
-        sigma = self.sigma
-        if _gap(self.cur.rms, sigma) < CRITERIA.iwan_stages_gap * sigma:
-            return
-        kept = False
-        for stage, where in ((restart_idle_elements, "while the idle Iwan elements were restarted"),
-                             (finer_bank, "while the Iwan bank was made finer")):
-            if not self.budget_hit:
-                mf = self.model_cap_factor(self.cur)
-                kept |= self.adopt(stage(self.trace, self.part, self.first, self.cur, self.cur_held, sigma,
-                                         lambda tr, sp, eff, starts, extra=(), cap_factor=1.0, _mf=mf, **kw:
-                                         self.shape_fit(tr, sp, eff, starts, extra, cap_factor=cap_factor * _mf, **kw),
-                                         self.say), where)
-        if not kept or self.budget_hit or _gap(self.cur.rms, sigma) < CRITERIA.iwan_stages_gap * sigma:
-            return
-        self.free_shapes(tuple(self.cur.shape))
-        self.reshape({r.effect for r in self.refinements if r.accepted} | {"hysteresis"},
-                     bank_cap_factor(sum(1 for k in IWAN_K if k in self.cur.free)))
+    def reseeded_laws(self) -> list:
+        """(effect, Law) of the named laws that have reseeding moves (Law.reseed)."""
+        laws = [(e, EFFECT[e].law(_law_of(self.cur.spec, e))) for e in self.cur.effects if e in LAW_FIELD]
+        return [(e, law) for e, law in laws if law is not None and law.reseed]
 
-    def swap_rival(self) -> bool:
+    def reseedable(self) -> bool:
+        """A named law has reseeding moves, the model misses the record by CRITERIA.iwan_stages_gap or
+        more, and the budget is not spent."""
+        return (not self.budget_hit and bool(self.reseeded_laws())
+                and _gap(self.cur.rms, self.sigma) >= CRITERIA.iwan_stages_gap * self.sigma)
+
+    def reseed(self) -> None:
+        """Each named law's reseeding moves in turn (for the Iwan bank: its idle elements restarted,
+        then a finer bank), each kept on the judge's terms. Where one is kept and the model still
+        misses the record by CRITERIA.iwan_stages_gap or more, the other laws' shape groups are tried
+        again beside the reseeded law, its terms free (docs/discovery.md, "The search")."""
+        for effect, law in self.reseeded_laws():
+            kept = False
+            for move, what in law.reseed:
+                if not self.budget_hit:
+                    mf = self.model_cap_factor(self.cur)
+                    kept |= self.adopt(getattr(rival, move)(
+                        self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
+                        lambda tr, sp, eff, starts, extra=(), cap_factor=1.0, _mf=mf, **kw:
+                        self.shape_fit(tr, sp, eff, starts, extra, cap_factor=cap_factor * _mf, **kw),
+                        self.say), f"while {what}")
+            if not kept or self.budget_hit or _gap(self.cur.rms, self.sigma) < CRITERIA.iwan_stages_gap * self.sigma:
+                continue
+            self.free_shapes(tuple(self.cur.shape))
+            self.reshape(self.refined_effects() | {effect}, rival.reseeded_cap_factor(self.cur))
+
+    def has_rival(self) -> bool:
+        """The hysteresis step fitted the rival law (its fits kept for rival_law)."""
+        return "hysteresis" in self.rivals
+
+    def swap_rival(self) -> None:
         """The hysteresis law fitted again with its rival in its place (rival_law), and the new law's
         own shape terms (the Iwan bank's slip strains, Bouc-Wen's exponent) where it is kept."""
         added = [s.effect for s in self.steps if s.effect and s.effect in self.cur.effects]
-        swapped = self.adopt(rival_law(
+        self.rival_kept = self.adopt(rival.rival_law(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None, cap_factor=1.0: self.fit(
                 tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms,
@@ -600,14 +618,13 @@ class Search:
             self.rivals["hysteresis"], added, self.say,
             elastic_reshaped=any(r.accepted and r.effect == "nonlinear_stiffness" for r in self.refinements)),
             "while the rival law was fitted")
-        if swapped:
+        if self.rival_kept:
             self.reshape(set(self.cur.effects) - {"hysteresis"})
-        return swapped
 
     def swap_wider_laws(self) -> None:
         """The elastic law and creep fitted again with their wider laws in their place (wider_law),
         where the model still misses the record."""
-        self.adopt(wider_law(
+        self.adopt(rival.wider_law(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
                 tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms),

@@ -4,15 +4,20 @@ terms, and the equation-error starts (the damping table, the Kelvin cells of a c
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from ..models import ELASTIC_FORCES, ModelSpec
 from ..traces import Trace
-from .fitting import ModelFit
-from .laws import _replaced, DAMPING_TABLE, DAMPING_TABLE_KNOTS
 from .scales import _Scales
+
+if TYPE_CHECKING:   # (the registry, laws.EFFECTS, names the starts below: this module imports none of it)
+    from .fitting import ModelFit
+
+
+#: knots of the FMU's damping table c_table_1..6
+DAMPING_TABLE_KNOTS = 6
 
 
 def _shape_start(params: dict, group: Sequence[str], sc: _Scales) -> dict:
@@ -22,6 +27,7 @@ def _shape_start(params: dict, group: Sequence[str], sc: _Scales) -> dict:
     saturating damping fitted to 6.0 x noise that way, 1.9 x with the knots over the range), its
     values those of the terms it replaces (c1 |x| + c2 x^2 and the drag), so that it starts at the
     current model."""
+    from .laws import _replaced
     p = dict(params)
     p.update({r: 0.0 for r in _replaced(group)})
     if any(g.startswith("c_table_") for g in group):
@@ -180,96 +186,118 @@ def _scale_elastic(p: dict, factor: float) -> dict:
 
 
 def candidate_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None = None) -> list[dict | None]:
-    """Starting points for ``new`` (``base`` plus one effect): warm from the base fit, with the new
-    terms at a few data-scaled values; None adds tether.fit's own data-based estimate; with the
-    ``trace``, equation-error starts where there is one (the Kelvin cells of a creep test).
+    """Starting points for ``new`` (``base`` plus one effect): the starts of the law it adds, in the
+    registry (laws.EFFECTS: a law's ``starts``, or its ``starts_from`` the law the model had; the
+    base fit's values where it adds none). Each is warm from the base fit, with the new terms at a
+    few data-scaled values; None adds tether.fit's own data-based estimate; with the ``trace``,
+    equation-error starts where there is one (the Kelvin cells of a creep test).
     Where ``base`` already has effects, the data-based estimate of the whole new model is always
     among the starts: the base fit's terms have taken up what the new effect explains (an Iwan
     bank fitted alone dissipates what a damping does), and warm starts keep them there."""
-    starts = _starts_for_effect(base, new, sc, trace)
+    from .laws import added_law
+    added = added_law(base.spec, new)
+    if added is None:
+        starts = [dict(base.params)]
+    else:
+        law, was = added
+        starts = dict(law.starts_from).get(was, law.starts)(base, new, sc, trace)
     if base.effects and None not in starts:
         starts.append(None)
     return starts
 
 
-def _starts_for_effect(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
-    """candidate_starts by the effect ``new`` adds."""
-    warm = dict(base.params)
-    old = base.spec
+def estimate_start(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """tether.fit's data-based estimate alone: Kawabata's energies, the exponential law's fit of the
+    load-elongation curve, the Iwan bank's element stiffnesses on a grid of slip strains by
+    non-negative least squares along the measured path."""
+    return [None]
+
+
+def boucwen_from_kawabata_starts(base: ModelFit, new: ModelSpec, sc: _Scales,
+                                 trace: Trace | None) -> list[dict | None]:
+    """A cubic law under a Bouc-Wen force in place of Kawabata's branches: the data-based estimate,
+    and a linear law of the record's stiffness under a force of a tenth of it."""
+    w = {"a1": sc.ea, "a2": 0.0, "a3": 0.0}
+    w.update(_boucwen_start(sc, 0.1, 0.3))
+    return [None, w]
+
+
+def cubic_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """The cubic law at the base's linear stiffness; and the data-based estimate where no hysteresis
+    is named."""
+    w = dict(base.params)
+    w.update(a1=w.get("EA", sc.ea), a2=0.0, a3=0.0)
+    return [w] + ([None] if new.hysteresis == "none" else [])
+
+
+def damping_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """c(x) growing with |x| or x^2, or a drag c_drag |v| growing with the speed amp * omega: four
+    starts from the base's c0, one with each leading, one with all small."""
+    warm = base.params
+    c0 = warm.get("c0", 1.0)
+    speed = sc.amp * (sc.omega if sc.omega > 0 else 1.0)
     starts: list[dict | None] = []
-    if new.hysteresis == "kawabata" and old.hysteresis != "kawabata":
-        starts.append(None)
-    elif old.hysteresis == "kawabata" and new.hysteresis == "boucwen":
-        w = {"a1": sc.ea, "a2": 0.0, "a3": 0.0}
-        w.update(_boucwen_start(sc, 0.1, 0.3))
-        starts += [None, w]
-    elif new.stiffness == "exponential" and old.stiffness != "exponential":
-        starts.append(None)               # tether.fit's fit of the load-elongation curve
-    elif new.stiffness == "cubic" and old.stiffness != "cubic":
-        ea = warm.get("EA", sc.ea)
+    for r1, r2, rd in ((1e-2, 1e-3, 1e-2), (1.0, 1e-3, 1e-2), (1e-3, 1.0, 1e-2), (1e-3, 1e-3, 1.0)):
         w = dict(warm)
-        w.update(a1=ea, a2=0.0, a3=0.0)
+        w.update(c0=c0 * (1.0 - 0.3 * max(r1, r2, rd)), c1=r1 * c0 / sc.amp, c2=r2 * c0 / sc.amp ** 2)
+        if "c_drag" in new.parameters:
+            w["c_drag"] = rd * c0 / speed
         starts.append(w)
-        if new.hysteresis == "none":
-            starts.append(None)
-    elif new.damping == "displacement" and old.damping != "displacement":
-        # c(x) growing with |x| or x^2, or a drag c_drag |v| growing with the speed amp * omega
-        c0 = warm.get("c0", 1.0)
-        speed = sc.amp * (sc.omega if sc.omega > 0 else 1.0)
-        for r1, r2, rd in ((1e-2, 1e-3, 1e-2), (1.0, 1e-3, 1e-2), (1e-3, 1.0, 1e-2), (1e-3, 1e-3, 1.0)):
-            w = dict(warm)
-            w.update(c0=c0 * (1.0 - 0.3 * max(r1, r2, rd)), c1=r1 * c0 / sc.amp, c2=r2 * c0 / sc.amp ** 2)
-            if "c_drag" in new.parameters:
-                w["c_drag"] = rd * c0 / speed
-            starts.append(w)
-    elif new.hysteresis == "boucwen" and old.hysteresis != "boucwen":
-        # first a start next to the base model (a weak, barely saturating force): the fit can only
-        # go down from the base model's error
-        # (starts far from it, e.g. a strong force that saturates early, send lightly damped fits
-        # of a forced record into slow, useless regions), then tether.fit's equation-error estimate
-        w = _scale_elastic(warm, 0.97)
-        w.update(_boucwen_start(sc, 0.03, 0.5))
-        starts += [w, None]
-    elif new.hysteresis == "iwan" and old.hysteresis != "iwan":
-        # the equation-error estimate of the bank (tether.fit: the element stiffnesses of a grid
-        # of slip strains by non-negative least squares along the measured path)
-        starts.append(None)
-    elif new.creep and not old.creep:
-        for f in (1.0, 0.01):
-            w = dict(warm)
-            w.update(creep_J1=1e-6 * f, creep_J2=2.5e-6 * f, creep_J3=1.5e-6 * f, slip_capacity0=4e-4 * f,
-                     slip_rate=1.5e-7, creep_tau1=1800.0, creep_tau2=5400.0, creep_tau3=172800.0,
-                     slip_knee=4e-5, slip_regen_tau=3600.0, slip_limit=1.0667e-3, slip_load_half=40.0)
-            starts.append(w)
-        if sc.hold > 0:
-            # retardation times a decade apart up to the longest hold: a creep law other than
-            # Kelvin cells (a power law of time, fast right after each step) is followed over the
-            # decades the record samples; the fixed times above start too slow for it
+    return starts
+
+
+def boucwen_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """First a start next to the base model (a weak, barely saturating force): the fit can only go
+    down from the base model's error (starts far from it, e.g. a strong force that saturates early,
+    send lightly damped fits of a forced record into slow, useless regions); then tether.fit's
+    equation-error estimate."""
+    w = _scale_elastic(dict(base.params), 0.97)
+    w.update(_boucwen_start(sc, 0.03, 0.5))
+    return [w, None]
+
+
+def creep_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """The default Kelvin cells and slip at full and at 1 % size; retardation times a decade apart up
+    to the longest hold (a creep law other than Kelvin cells, a power law of time, fast right after
+    each step, is followed over the decades the record samples; the fixed times start too slow for
+    it); the data-based estimate; the retardation times of the equation error (with the trace)."""
+    warm = base.params
+    starts: list[dict | None] = []
+    for f in (1.0, 0.01):
+        w = dict(warm)
+        w.update(creep_J1=1e-6 * f, creep_J2=2.5e-6 * f, creep_J3=1.5e-6 * f, slip_capacity0=4e-4 * f,
+                 slip_rate=1.5e-7, creep_tau1=1800.0, creep_tau2=5400.0, creep_tau3=172800.0,
+                 slip_knee=4e-5, slip_regen_tau=3600.0, slip_limit=1.0667e-3, slip_load_half=40.0)
+        starts.append(w)
+    if sc.hold > 0:
+        w = dict(starts[0])
+        w.update(zip(("creep_tau1", "creep_tau2", "creep_tau3"),
+                     (min(max(f * sc.hold, 1.0), 1e7) for f in (0.01, 0.1, 1.0))))
+        starts.append(w)
+    starts.append(None)
+    if trace is not None:
+        ee = _retardation_times_start(trace, base.spec, dict(warm), sc)
+        if ee is not None:
             w = dict(starts[0])
-            w.update(zip(("creep_tau1", "creep_tau2", "creep_tau3"),
-                         (min(max(f * sc.hold, 1.0), 1e7) for f in (0.01, 0.1, 1.0))))
+            w.update(ee)
             starts.append(w)
-        starts.append(None)
-        if trace is not None:
-            ee = _retardation_times_start(trace, old, warm, sc)
-            if ee is not None:
-                w = dict(starts[0])
-                w.update(ee)
-                starts.append(w)
-    elif new.slack and not old.slack:
-        starts.append(dict(warm))
-        if old.stiffness == "linear":
-            w = dict(warm)
-            w.update(EA=sc.ea)
-            starts.append(w)
-    else:
-        starts.append(warm)
+    return starts
+
+
+def slack_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """The base's values; where its stiffness is linear, also with EA from the record."""
+    starts: list[dict | None] = [dict(base.params)]
+    if base.spec.stiffness == "linear":
+        w = dict(base.params)
+        w.update(EA=sc.ea)
+        starts.append(w)
     return starts
 
 
 def _damping_table_starts(trace: Trace, fm: "ModelFit", sc: _Scales) -> list:
     """Starts of the damping table from a polynomial damping fit: the table at the polynomial's
     values, and the table of the equation error (_damping_table_start)."""
+    from .laws import DAMPING_TABLE
     flat = _shape_start(fm.params, DAMPING_TABLE, sc)
     ee = _damping_table_start(trace, fm.spec, fm.params, flat["c_table_dx"])
     return [flat] if ee is None else [flat, {**flat, **ee}]
