@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -295,3 +296,76 @@ def test_the_held_out_test_goes_on_while_no_candidate_passes_it():
     passing = [cand("creep", 5.0, 2.0), cand("nonlinear_damping", 5.0, 40.0), cand("nonlinear_stiffness", 5.0, 3.0)]
     win = camp.heldout_tests(passing)
     assert win is passing[0] and math.isnan(passing[2].heldout_rms) and "not tested" in passing[2].verdict
+
+
+def _hysteresis_campaign(folder: Path):
+    """A tether with the generator's Iwan friction (twelve elements): a load-unload test and a creep
+    test (the tests' sizes: 409 and 631 samples), its start model fitted."""
+    from tether.discover.campaign import Campaign
+
+    recs, _, _ = cr.campaign(3, effects={"hysteresis"}, experiments=("load_unload", "creep"), sizes=cr.TINY)
+    traces = [read_trace(s) for s in cr.write_campaign(recs, folder)]
+    camp = Campaign(traces, "linear", None, 5, 2, None, None, False)
+    camp.fit_start()
+    return camp
+
+
+def test_the_rival_hysteresis_law_is_fitted_in_its_place_at_the_end(tmp_path):
+    """The one-record search's rival law on the campaign: the hysteresis step chose Bouc-Wen (here
+    set so: the step's fits of both laws on record, Bouc-Wen in the model), which leaves the load
+    test of the generator's Iwan friction at 2.6 x its noise; at the end the Iwan bank is fitted in
+    its place from its own fit of the step, kept by the rival-law rule (a lower BIC and error, the
+    held-out parts no worse), and brings every record within 1.5 x its noise."""
+    from tether.discover.campaign import CampaignStep
+
+    camp = _hysteresis_campaign(tmp_path)
+    start = camp.cur
+    fits = {law: camp.fit(parse_model(f"linear+{law}"), ("hysteresis",), [start.params, None])
+            for law in ("boucwen", "iwan")}
+    camp.rivals = {"hysteresis": {law: f.params for law, f in fits.items()}}
+    camp.cur = camp.settle(fits["boucwen"])
+    camp.cur_held = camp.heldout_of(camp.cur)
+    camp.fits.append(camp.cur)
+    camp.steps = [CampaignStep(effect="hysteresis", model_before="linear", model_after=camp.cur.model,
+                               rms_before=start.rms, rms_after=camp.cur.rms, records_before=start.rms_records,
+                               records_after=camp.cur.rms_records)]
+    before = [e / r.sigma for e, r in zip(camp.cur.rms_records, camp.records)]
+    assert max(before) > 2.0, before
+    camp.rival_law()
+    assert [(x.law, x.accepted) for x in camp.refinements] == [("boucwen -> iwan", True)], camp.refinements
+    assert camp.cur.spec.hysteresis == "iwan" and camp.cur.rms < fits["boucwen"].rms
+    assert all(e <= 1.5 * r.sigma for e, r in zip(camp.cur.rms_records, camp.records)), camp.cur.rms_records
+
+
+def test_the_named_effects_are_tested_again_after_a_law_is_put_in(tmp_path):
+    """Once a last stage put another law in (a rival or wider law, on record as a kept Refinement
+    after the last step's re-tests), every named effect but the one whose law changed is tested
+    again beside it (the one-record search's retest_after_refinements): on a linear tether, creep
+    carried beside a cubic law whose law was just refined earns nothing and is removed. Without a
+    kept refinement nothing is tested."""
+    from tether.discover.campaign import Campaign, CampaignStep
+    from tether.discover.records import Refinement
+
+    recs, _, _ = cr.campaign(4, effects=set(), experiments=("load_unload", "creep"), sizes=cr.TINY)
+    traces = [read_trace(s) for s in cr.write_campaign(recs, tmp_path)]
+    camp = Campaign(traces, "linear", None, 5, 2, None, None, False)
+    camp.fit_start()
+    start = camp.cur
+    weak_creep = {"creep_J1": 1e-9, "creep_J2": 1e-9, "creep_J3": 1e-9, "slip_capacity0": 1e-9}
+    camp.cur = camp.fit(parse_model("cubic+creep"), ("nonlinear_stiffness", "creep"),
+                        [{**start.params, "a1": start.params["EA"], "a2": 0.0, "a3": 0.0, **weak_creep}])
+    assert camp.cur.ok, camp.cur.message
+    camp.fits.append(camp.cur)
+    camp.steps = [CampaignStep(effect=e, model_before="linear", model_after=camp.cur.model, rms_before=start.rms,
+                               rms_after=camp.cur.rms, records_before=start.rms_records,
+                               records_after=camp.cur.rms_records) for e in ("creep", "nonlinear_stiffness")]
+    refined = Refinement("nonlinear_stiffness", (), camp.cur.rms, camp.cur.rms, 1.0, 1.0, -1.0, False, "not kept",
+                         law="cubic -> exponential")
+    camp.refinements = [refined]
+    camp.retest_after_refinements()
+    assert camp.steps[-1].retests == [] and camp.cur.spec.creep     # nothing kept: nothing tested
+    camp.refinements = [replace(refined, accepted=True, verdict="kept")]
+    camp.retest_after_refinements()
+    assert [(t.effect, t.kept) for t in camp.steps[-1].retests] == [("creep", False)], camp.steps[-1].retests
+    assert "refined laws (nonlinear_stiffness)" in camp.steps[-1].retests[0].beside
+    assert [x.effect for x in camp.removals] == ["creep"] and not camp.cur.spec.creep
