@@ -369,3 +369,25 @@ def test_the_named_effects_are_tested_again_after_a_law_is_put_in(tmp_path):
     assert [(t.effect, t.kept) for t in camp.steps[-1].retests] == [("creep", False)], camp.steps[-1].retests
     assert "refined laws (nonlinear_stiffness)" in camp.steps[-1].retests[0].beside
     assert [x.effect for x in camp.removals] == ["creep"] and not camp.cur.spec.creep
+
+
+def test_load_tests_beyond_their_share_are_thinned_keeping_every_load_step(tmp_path):
+    """A load-unload test and a creep test, whose loads are ramps and holds: beyond their share of
+    the search's samples they are searched thinned, every corner of the load kept with the samples
+    beside it (samples._input_corners), so that the load rebuilt from the kept samples is the
+    record's own at every dropped sample (before: a creep test's load steps rebuilt from every 2nd
+    sample missed by 36 x the noise, and such records were searched on every sample)."""
+    from tether.discover.samples import search_thinning, thinned, thinned_input_miss
+    from tether.noise import estimate_noise
+
+    sizes = {**cr.TINY, "load_unload": {"rate": 10.0}}
+    recs, _, _ = cr.campaign(4, effects=set(), experiments=("load_unload", "creep"), sizes=sizes)
+    for tr, share in zip((read_trace(s) for s in cr.write_campaign(recs, tmp_path)), (700, 200)):
+        sigma = estimate_noise(tr).sigma
+        k = search_thinning(tr, sigma, share)
+        assert k == math.ceil(len(tr.time) / share), (tr.name, k, len(tr.time))
+        assert thinned_input_miss(tr, k) <= 1e-6 * sigma
+        th = thinned(tr, k)
+        assert len(th.time) <= 1.1 * len(tr.time) / k + 1
+        steps = np.flatnonzero(np.abs(np.diff(tr.input, 2)) > 1e-6 * np.max(np.abs(tr.input))) + 1
+        assert len(steps) >= 3 and set(tr.time[steps]) <= set(th.time)   # every corner of the load kept
