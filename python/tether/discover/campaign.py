@@ -415,7 +415,8 @@ class Campaign(Contradictions):
         is fitted again with its rival in its place (the Iwan bank for Bouc-Wen and back), to every
         record jointly, from the rival's own fit of its step with the current model's other terms,
         with its own elastic law as well, matched to the current law's stiffness and force
-        (rival._law_converted), and from the data-based estimate; kept as a wider law is (swap_law).
+        (rival._law_converted), and from the data-based estimate (the only start where the rival's
+        fit failed in its step); kept as a wider law is (swap_law).
         A step chooses the law beside the effects named so far; one named after it can change which
         law fits best."""
         effect, cur = "hysteresis", self.cur
@@ -427,9 +428,9 @@ class Campaign(Contradictions):
         if self.named()[-1:] == [effect] and not still_missing:
             return
         other = next(x for x in RIVAL_LAWS[effect] if x != law)
-        if other not in self.rivals.get(effect, {}):
-            return
-        rival = self.rivals[effect][other]
+        # (where the rival's fit failed in its step, from the data-based estimate alone: a failed
+        # short fit is no verdict on a law, as in the one-record search)
+        rival = self.rivals.get(effect, {}).get(other, {})
         new = replace(cur.spec, hysteresis=other)
         mine = {k: v for k, v in cur.params.items() if k in new.parameters and k not in HYSTERESIS_PARAMETERS[law]}
         theirs = {k: v for k, v in rival.items() if k in HYSTERESIS_PARAMETERS[other]}
