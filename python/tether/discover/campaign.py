@@ -26,7 +26,7 @@ from __future__ import annotations
 import copy
 import math
 import time
-from contextlib import contextmanager
+from dataclasses import replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -34,16 +34,17 @@ import numpy as np
 from .. import identify_native as idn
 from .. import nuisance as NZ
 from ..blas import in_one_blas_thread
-from ..models import EFFECTS, ModelSpec, parse_model
+from ..models import EFFECTS, ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, ModelSpec, parse_model
 from ..noise import estimate_noise
 from ..traces import Trace
 from .document import ordinal
 from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, _side_by_side, fit_model, predict
 from .judge import CRITERIA, _bic, _gap, _law_judged, _slack_acts, bic_change, full_data_verdict, heldout_verdict
-from .laws import HELD_AT_START, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates, free_parameters, unrevealed
+from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates,
+                   free_parameters, unrevealed)
 from .nuisance import nuisance_parameters, nuisance_start
 from .records import DiscoveryError, Refinement, Removal, Retest
-from .rival import _wider_law_starts
+from .rival import _law_converted, _wider_law_starts
 from .samples import SEARCH_SAMPLES, WHOLE_RECORD_ITERATIONS, _truncated, search_thinning, thinned
 from .scales import _scales
 from .starts import _reduced_starts, candidate_starts
@@ -54,6 +55,7 @@ QUICK_ITERATIONS = 12
 SETTLE_ROUNDS = 2
 
 
+from .campaign_contradictions import Contradictions
 from .campaign_records import (CampaignCandidate, CampaignDiscovery, CampaignFit, CampaignInputError,  # noqa: F401
                                CampaignStep, Record, _baked, _law_only, check_campaign)
 
@@ -67,7 +69,7 @@ def discover_campaign(traces: Sequence[Trace], start: str = "linear", progress: 
     return Campaign(traces, start, progress, max_steps, heldout_candidates, budget, mass_band, free_nuisance).run()
 
 
-class Campaign:
+class Campaign(Contradictions):
     """One campaign discovery: the records, the current joint fit and its held-out error, the steps."""
 
     def __init__(self, traces, start, progress, max_steps, heldout_candidates, budget, mass_band, free_nuisance):
@@ -90,6 +92,8 @@ class Campaign:
         self.removals: list[Removal] = []
         self.refinements: list[Refinement] = []
         self.fits: list[CampaignFit] = []
+        self.rivals: dict = {}            # effect -> {law: the shared law of its candidate's fit}
+        self.retested_at = 0              # refinements up to here were followed by the re-tests
         self.stop = ""
         self.cap: float | None = None
 
@@ -359,7 +363,11 @@ class Campaign:
             elif not self.stop:
                 self.stop = f"the most steps ({self.max_steps}) were taken"
         if not self.budget_hit:
+            self.rival_law()
+        if not self.budget_hit:
             self.wider_laws()
+        if not self.budget_hit:
+            self.retest_after_refinements()
         if any(r.every > 1 for r in self.records):
             self.on_whole_records()
         contradicting, alone = self.contradictions()
@@ -397,25 +405,72 @@ class Campaign:
                             predicted=cur.predicted[i])     # (the record baked: its nuisance in it)
             starts = _wider_law_starts(_baked(lead.trace, lead.nz), base, new.for_experiment(lead.trace.experiment),
                                        effect, law)
-            starts = [{**cur.params, **st} for st in starts]
-            factor = self.cap_factor_for(cur)
-            fm = self.nuisance_then_law(self.fit(new, cur.effects, starts, cap_factor=factor), cap_factor=factor)
-            held, bic = float("nan"), float("inf")
-            if not fm.ok:
-                ok, verdict = False, f"the fit failed: {fm.message}"
-            else:
-                bic = bic_change(cur, fm, self.n)
-                if bic < 0.0 and fm.rms < cur.rms:
-                    held = self.heldout_of(fm)
-                ok, verdict = _law_judged(cur.rms, fm.rms, bic, self.cur_held, held, 1.0, law)
-            terms = tuple(k for k in fm.free if k not in cur.free) if fm.ok else ()
-            self.refinements.append(Refinement(effect, terms, cur.rms, fm.rms, self.cur_held, held, bic, ok, verdict,
-                                               {k: float(fm.params[k]) for k in terms}, law=f"{law} -> {other}"))
-            self.say(f"law of {effect}, {law} -> {other}: {'kept' if ok else 'not kept'}: {verdict}")
-            if ok:
-                self.cur = self.settle(fm)
-                self.cur_held = held if self.cur is fm else self.heldout_of(self.cur)
-                self.fits.append(self.cur)
+            self.swap_law(effect, law, new, [{**cur.params, **st} for st in starts],
+                          lambda k, free=tuple(cur.free): k not in free)
+
+    def rival_law(self) -> None:
+        """The one-record search's rival law (rival.rival_law) on the campaign: where a record is
+        still missed and the hysteresis was not the last effect named or the campaign still leaves
+        something unexplained (a gap of CRITERIA.unexplained_gap in some record), the hysteresis law
+        is fitted again with its rival in its place (the Iwan bank for Bouc-Wen and back), to every
+        record jointly, from the rival's own fit of its step with the current model's other terms,
+        with its own elastic law as well, matched to the current law's stiffness and force
+        (rival._law_converted), and from the data-based estimate (the only start where the rival's
+        fit failed in its step); kept as a wider law is (swap_law).
+        A step chooses the law beside the effects named so far; one named after it can change which
+        law fits best."""
+        effect, cur = "hysteresis", self.cur
+        law = cur.spec.hysteresis
+        if self.within_noise(cur) or law not in RIVAL_LAWS[effect] or effect not in self.named():
+            return
+        still_missing = any(_gap(e, r.sigma) >= CRITERIA.unexplained_gap * r.sigma
+                            for e, r in zip(cur.rms_records, self.records))
+        if self.named()[-1:] == [effect] and not still_missing:
+            return
+        other = next(x for x in RIVAL_LAWS[effect] if x != law)
+        # (where the rival's fit failed in its step, from the data-based estimate alone: a failed
+        # short fit is no verdict on a law, as in the one-record search)
+        rival = self.rivals.get(effect, {}).get(other, {})
+        new = replace(cur.spec, hysteresis=other)
+        mine = {k: v for k, v in cur.params.items() if k in new.parameters and k not in HYSTERESIS_PARAMETERS[law]}
+        theirs = {k: v for k, v in rival.items() if k in HYSTERESIS_PARAMETERS[other]}
+        their_elastic = {k: v for k, v in rival.items() if k in ELASTIC_PARAMETERS and k in new.parameters}
+        L0 = float(self.records[0].trace.length_m)
+        starts = [{**mine, **theirs}, {**mine, **theirs, **their_elastic},
+                  {**mine, **theirs, **_law_converted(cur.params, law, theirs, L0)}, None]
+        self.swap_law(effect, law, new, starts, lambda k: k in HYSTERESIS_PARAMETERS[other])
+
+    def named(self) -> list:
+        """The effects the search added that the current model has, in the order they were added."""
+        return [s.effect for s in self.steps if s.effect and s.effect in self.cur.effects]
+
+    def swap_law(self, effect: str, law: str, new: ModelSpec, starts: list, reported: Callable[[str], bool]) -> None:
+        """``new`` (the current model with another law of ``effect`` in ``law``'s place) fitted to
+        every record from ``starts`` (each record's nuisance refitted once with it) and kept as a
+        rival law is (judge._law_judged on the campaign's error in noise units: a lower BIC and error,
+        the held-out parts' prediction no worse); on record as a Refinement whose terms are the fit's
+        free terms ``reported`` selects."""
+        cur = self.cur
+        other = _law_of(new, effect)
+        factor = self.cap_factor_for(cur)
+        fm = self.nuisance_then_law(self.fit(new, cur.effects, starts, cap_factor=factor), cap_factor=factor)
+        held, bic = float("nan"), float("inf")
+        if not fm.ok:
+            ok, verdict = False, f"the fit failed: {fm.message}"
+        else:
+            bic = bic_change(cur, fm, self.n)
+            if bic < 0.0 and fm.rms < cur.rms:
+                held = self.heldout_of(fm)
+            ok, verdict = _law_judged(cur.rms, fm.rms, bic, self.cur_held, held, 1.0, law)
+        ok = ok and not self.budget_hit
+        terms = tuple(k for k in fm.free if reported(k)) if fm.ok else ()
+        self.refinements.append(Refinement(effect, terms, cur.rms, fm.rms, self.cur_held, held, bic, ok, verdict,
+                                           {k: float(fm.params[k]) for k in terms}, law=f"{law} -> {other}"))
+        self.say(f"law of {effect}, {law} -> {other}: {'kept' if ok else 'not kept'}: {verdict}")
+        if ok:
+            self.cur = self.settle(fm)
+            self.cur_held = held if self.cur is fm else self.heldout_of(self.cur)
+            self.fits.append(self.cur)
 
     def on_whole_records(self) -> None:
         """A search on thinned records carried to the whole records (the one-record search's
@@ -534,6 +589,8 @@ class Campaign:
                                                                factor), cands)
         by_effect: dict = {}
         for (e, new, _, _), f in zip(cands, fits):
+            if e in RIVAL_LAWS and f.ok:     # each law's fit, for the rival law at the end (rival_law)
+                self.rivals.setdefault(e, {})[_law_of(new, e)] = dict(f.params)
             c = self.judge(e, f)
             self.say(f"  + {e} ({new.canonical}): campaign RMS error {f.rms:.2f} x noise, BIC {c.bic_change:+.0f}"
                      + (" passes" if c.accepted else f": {c.verdict}") + f" ({f.seconds:.1f} s)")
@@ -564,9 +621,32 @@ class Campaign:
         (each record's nuisance refitted once with it); the first that does not earn its place is
         removed and the model settled again. (A campaign of seed 1000 named a cubic law for the
         free vibration's misfit while the creep it lacked was still missing.)"""
+        self.retest([x for x in self.cur.effects if x not in self.base_effects and x != step.effect], step,
+                    step.effect)
+        self.retested_at = len(self.refinements)
+
+    def retest_after_refinements(self) -> None:
+        """Every named effect tested again where a last stage put another law in (the rival or a
+        wider law) after the last step's re-tests (the one-record search's
+        Search.retest_after_refinements): an effect named to make up for a law's wrong form need
+        not earn its place once the form is right. The effects whose own law changed are not
+        tested; removed one at a time, the rest tested again after each removal."""
+        changed = {r.effect for r in self.refinements[self.retested_at:] if r.accepted}
+        if not changed or not self.steps:
+            return
+        beside = "the refined laws (" + ", ".join(sorted(changed)) + ")"
+        while not self.budget_hit and self.retest(
+                [x for x in self.cur.effects if x not in self.base_effects and x not in changed], self.steps[-1],
+                beside):
+            pass
+        self.retested_at = len(self.refinements)
+
+    def retest(self, effects: Sequence[str], step: CampaignStep, beside: str) -> bool:
+        """Each of ``effects`` tested again beside the current model (retest_named), on record in
+        ``step``'s re-tests; the first that no longer earns its place is removed. True where one was."""
         cur = self.cur
         factor = self.cap_factor_for(cur)
-        for e in [x for x in cur.effects if x not in self.base_effects and x != step.effect]:
+        for e in effects:
             red = _without(cur.spec, e)
             effects = tuple(x for x in cur.effects if x != e)
             rf = self.fit(red, effects, _reduced_starts(cur, red, self.records[0].sc), cap_factor=factor)
@@ -575,17 +655,18 @@ class Campaign:
                 continue
             bic = bic_change(rf, cur, self.n)
             keep, why = full_data_verdict(1.0, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
-            step.retests.append(Retest(e, bic, keep, why))
-            self.say(f"  re-test of {e} beside {step.effect}: without it {rf.rms:.2f} x noise ({why}): "
+            step.retests.append(Retest(e, bic, keep, why, None if beside == step.effect else beside))
+            self.say(f"  re-test of {e} beside {beside}: without it {rf.rms:.2f} x noise ({why}): "
                      + ("kept" if keep else "removed"))
             if keep:
                 continue
             self.removals.append(Removal(e, cur.model, rf.model, cur.rms, rf.rms,
-                                         f"next to {step.effect} it no longer earns its parameters: {why}"))
+                                         f"next to {beside} it no longer earns its parameters: {why}"))
             self.cur = self.settle(rf)
             self.cur_held = self.heldout_of(self.cur)
             self.fits.append(self.cur)
-            break
+            return True
+        return False
 
     def heldout_tests(self, passing: list) -> CampaignCandidate | None:
         """The held-out test, best first, for up to ``heldout_candidates`` of the candidates that
@@ -663,102 +744,3 @@ class Campaign:
         self.cur = settled
         self.cur_held = win.heldout_rms if settled is f else self.heldout_of(settled)
         self.fits.append(self.cur)
-
-    # ---- records that contradict the others
-    @contextmanager
-    def only(self, keep: Sequence[int]):
-        """The campaign reduced to the records ``keep`` for the fits inside the block."""
-        saved = self.records, self.n, self.n_nuisance
-        self.records = [saved[0][i] for i in keep]
-        self.n = sum(r.n for r in self.records)
-        self.n_nuisance = sum(len(r.nuisance) for r in self.records)
-        try:
-            yield
-        finally:
-            self.records, self.n, self.n_nuisance = saved
-
-    def own_fit(self, i: int) -> tuple[ModelFit | None, bool, str]:
-        """Record ``i`` fitted alone with the final model (its own law, its nuisance free), from the
-        campaign's values; (the fit, whether its own law earns its parameters against the shared one
-        by the one-record rule, why)."""
-        cur, r = self.cur, self.records[i]
-        spec = cur.spec.for_experiment(r.trace.experiment)
-        own = fit_model(r.trace, spec, cur.effects, [{**cur.params, **cur.nz[i]}, None], r.sc,
-                        nuisance=r.nuisance, time_cap=self.cap)
-        if not own.ok:
-            return None, False, f"its own fit failed: {own.message}"
-        dk = len([n for n in own.free if n not in NZ.NUISANCE])
-        e = cur.rms_records[i]
-        bic = _bic(own.rms, dk, r.n) - _bic(e, 0, r.n)
-        ok, why = full_data_verdict(r.sigma, e, own.rms, bic, dk)
-        return own, ok, why
-
-    def rest_consistent(self, i: int) -> CampaignFit | None:
-        """The final model fitted to every record but ``i`` as the campaign began (each record's
-        nuisance at its own fit's values, the law from the final one's, the data-based estimate and
-        each record's own; the law and the nuisance then in turn, as settle does; the records'
-        values restored after): the fit where it reproduces each of them without an unexplained gap
-        (CRITERIA.unexplained_gap), else None. (Started from the compromise's nuisance values, a free
-        vibration bent by a stiffer tether's record stayed at 2.97 x its noise beside the load test
-        of its own tether; the two fitted together from their own values reach 0.89 and 0.92 x.)"""
-        keep = [j for j in range(len(self.records)) if j != i]
-        name = self.records[i].name
-        with self.only(keep):
-            saved = [dict(r.nz) for r in self.records]
-            try:
-                nzs = [dict(r.alone.get("nz", r.nz)) for r in self.records]
-                own = [r.alone["law"] for r in self.records if r.alone and self.cur.spec == self.spec]
-                rest = self.fit(self.cur.spec, self.cur.effects, [self.cur.params, None] + own, nzs=nzs)
-                if rest.ok:
-                    rest = self.settle(rest)   # the nuisance and the law in turn
-                good = rest.ok and all(_gap(e, r.sigma) < CRITERIA.unexplained_gap * r.sigma
-                                       for e, r in zip(rest.rms_records, self.records))
-                self.say(f"  without {name}: " + ", ".join(
-                    f"{r.name} {e / r.sigma:.2f}" for e, r in zip(rest.rms_records, self.records))
-                    + " x noise" + ("" if good else " (not every record reproduced)"))
-            finally:
-                for r, nz in zip(self.records, saved):
-                    r.nz = nz
-        return rest if good else None
-
-    def contradictions(self) -> tuple[list, dict]:
-        """The records that contradict the others: those the final model misses grossly (a gap of
-        CRITERIA.gross_gap sigma or more: beyond what the noise or a law's detail makes) whose own
-        fit of the final law earns its parameters against the shared one by the one-record rule;
-        where several do (the shared law is a compromise that misses them all), those without which
-        the rest are reproduced. Each named with its misfit and the shared parameters its own fit
-        moves most. (A record of the generator's campaign with slack and creep, searched with noise
-        1e-5 m, stayed at 2.4 x noise beside the others and reached 1.0 x alone: a law's detail
-        seen by a very quiet record, not another tether; the gross gap keeps it from being named.)"""
-        cur = self.cur
-        suspects, alone = [], {}
-        for i, r in enumerate(self.records):
-            if self.budget_hit or _gap(cur.rms_records[i], r.sigma) < CRITERIA.gross_gap * r.sigma:
-                continue
-            own, ok, why = self.own_fit(i)
-            if own is None:
-                continue
-            alone[r.name] = {"rmse": own.rms, "rmse_over_noise": own.rms / r.sigma, "verdict": why,
-                             "parameters": own.law_params}
-            if ok:
-                suspects.append((i, own, why))
-        if len(suspects) > 1 and len(self.records) > 2:
-            odd = [s for s in suspects if self.rest_consistent(s[0]) is not None]
-            suspects = odd or suspects
-        out = []
-        for i, own, why in suspects:
-            r, e = self.records[i], cur.rms_records[i]
-            differ = sorted(((n, own.params[n], cur.params[n]) for n in own.free
-                             if n in cur.params and n not in NZ.NUISANCE and cur.params[n] and own.params[n]
-                             and own.params[n] / cur.params[n] > 0),
-                            key=lambda t: -abs(math.log(t[1] / t[2])))
-            entry = {"trace": str(r.trace.stem), "name": r.name, "rmse_final": e, "rmse_final_over_noise": e / r.sigma,
-                     "rmse_alone": own.rms, "rmse_alone_over_noise": own.rms / r.sigma,
-                     "why": (f"the campaign's law misses it at {e / r.sigma:.2f} x its noise; fitted alone it reaches "
-                             f"{own.rms / r.sigma:.2f} x ({why})"
-                             + (f"; its own {differ[0][0]} is {differ[0][1] / differ[0][2]:.3g} x the campaign's"
-                                if differ else "")),
-                     "parameters_differ": [{"name": n, "alone": a, "campaign": c} for n, a, c in differ[:3]]}
-            out.append(entry)
-            self.say(f"CONTRADICTING RECORD {r.name}: {entry['why']}")
-        return out, alone

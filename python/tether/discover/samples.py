@@ -46,10 +46,41 @@ THINNED_INPUT_SHARE = 0.05
 WHOLE_RECORD_ITERATIONS = 20
 
 
-def _kept_samples(n: int, k: int, periodic: bool) -> np.ndarray:
-    """Every k-th of n samples; a record that is not periodic keeps its last sample as well."""
+#: a record that is not periodic and whose input is made of straight pieces (a load test's ramps
+#: and holds) keeps, beside every k-th sample, each corner of its input and the samples on both
+#: sides of it, where they add at most this share to the samples kept: the input rebuilt from the
+#: kept samples is then the record's own at every dropped sample (a creep test's load steps,
+#: rebuilt from every 2nd sample, missed it by 36 x the noise). A smooth or noisy input has corners
+#: everywhere and keeps only every k-th sample.
+CORNER_SHARE = 0.1
+
+#: ... a corner: a second difference of the input above this share of its largest magnitude (the
+#: digits a CSV file keeps make the rest)
+CORNER_TOLERANCE = 1e-6
+
+
+def _input_corners(trace: Trace, k: int) -> np.ndarray:
+    """The samples at and beside every corner of the input of a record that is not periodic
+    (CORNER_SHARE, CORNER_TOLERANCE); none where they would add more than CORNER_SHARE to every
+    k-th sample, or for a periodic record or one without input."""
+    if trace.input is None or trace.periodic_samples or k <= 1:
+        return np.zeros(0, int)
+    u = np.asarray(trace.input, float)
+    scale = float(np.max(np.abs(u))) if len(u) else 0.0
+    if len(u) < 3 or not scale > 0:
+        return np.zeros(0, int)
+    j = np.flatnonzero(np.abs(np.diff(u, 2)) > CORNER_TOLERANCE * scale)
+    near = np.unique(np.concatenate([j, j + 1, j + 2]))
+    return near if len(near) <= CORNER_SHARE * len(u) / k else np.zeros(0, int)
+
+
+def _kept_samples(n: int, k: int, periodic: bool, corners=()) -> np.ndarray:
+    """Every k-th of n samples and the samples ``corners`` (_input_corners); a record that is not
+    periodic keeps its last sample as well."""
     keep = np.arange(0, n, k)
-    return keep if periodic or keep[-1] == n - 1 else np.append(keep, n - 1)
+    if not periodic:
+        keep = np.union1d(np.union1d(keep, np.asarray(corners, int)), [n - 1])
+    return keep
 
 
 def thinned_input_miss(trace: Trace, k: int, kind: str | None = None) -> float:
@@ -70,7 +101,7 @@ def thinned_input_miss(trace: Trace, k: int, kind: str | None = None) -> float:
     if P:
         period = record_period(t, P)
         t, u = t[:P], u[:P]
-    keep = _kept_samples(len(t), k, bool(P))
+    keep = _kept_samples(len(t), k, bool(P), _input_corners(trace, k))
     vals, ders = input_pieces(t[keep], u[keep], period, kind)
     drop = np.setdiff1d(np.arange(len(t)), keep)
     i = np.searchsorted(t[keep], t[drop], side="right") - 1
@@ -119,7 +150,7 @@ def thinned(trace: Trace, k: int) -> Trace:
     """The record on every k-th sample (search_thinning's k; a periodic record keeps whole periods),
     its input rebuilt between them as thinned_interpolation says."""
     P = int(trace.periodic_samples or 0)
-    out = _samples_of(trace, _kept_samples(len(trace.time), k, bool(P)))
+    out = _samples_of(trace, _kept_samples(len(trace.time), k, bool(P), _input_corners(trace, k)))
     if P:
         out.periodic_samples = P // k
     if trace.input is not None:
