@@ -46,12 +46,13 @@ def _law_converted(params: dict, law: str, rival: dict, L0: float) -> dict:
     return {n: float(v) for n, v in zip(IWAN_K, kr * (A * L0 / kr.sum()))}
 
 
-def _estimated(trace: Trace, spec) -> dict:
-    """tether.fit's data-based estimate of ``spec``'s parameters on ``trace``: a rival law's terms
-    where its fit in the step that named the effect failed."""
+def _estimated(trace: Trace, spec, fixed: dict | None = None) -> dict:
+    """tether.fit's data-based estimate of ``spec``'s parameters on ``trace`` (``fixed`` held), its
+    private entries ('_'...) left out: a start of a rival or wider law, or a rival law's terms where
+    its fit in the step that named the effect failed."""
     from ..fit import initial_estimate
 
-    return {k: float(v) for k, v in initial_estimate([trace], spec).items() if not k.startswith("_")}
+    return {k: v for k, v in initial_estimate([trace], spec, fixed=fixed).items() if not k.startswith("_")}
 
 
 def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
@@ -98,10 +99,8 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     if elastic_reshaped:
         # tether.fit's estimate beside the power term kept: the rival's terms and the cubic's
         # from the data, the power term's exponent and reference strain held (docs/discovery.md)
-        from ..fit import initial_estimate
         power = {k: float(cur.params[k]) for k in ("pow_F", "pow_eps", "pow_n") if k in cur.params}
-        starts.insert(3, {k: v for k, v in initial_estimate([trace], new, fixed=power).items()
-                          if not k.startswith("_")})
+        starts.insert(3, _estimated(trace, new, power))
     # (a power term's law simulates several times slower than the cubic's: its fits get the time)
     factor = RESHAPED_RIVAL_CAP_FACTOR if elastic_reshaped else 1.0
     return _law_swapped(trace, part, first, cur, cur_held, sigma, fit, new, effect, law, starts,
@@ -368,12 +367,10 @@ def _wider_law_starts(trace: Trace, cur: ModelFit, new, effect: str, law: str) -
     current fit's) and, for the exponential law, matched to the cubic's stiffness and its slope at
     the record's typical strain. (tether.fit's estimate of the whole model is the first start again
     but for the other terms, which the current fit has better.)"""
-    from ..fit import initial_estimate
     from ..models import CREEP_PARAMETERS, STIFFNESS_PARAMETERS
     own = STIFFNESS_PARAMETERS if effect == "nonlinear_stiffness" else CREEP_PARAMETERS
     mine = {k: float(v) for k, v in cur.params.items() if k in new.parameters and k not in own[law]}
-    estimate = {k: v for k, v in initial_estimate([trace], new, fixed=mine).items()
-                if not k.startswith("_") and k in own[_law_of(new, effect)]}
+    estimate = {k: v for k, v in _estimated(trace, new, mine).items() if k in own[_law_of(new, effect)]}
     starts = [{**mine, **estimate}]
     if effect == "nonlinear_stiffness":
         eps = np.asarray(trace.measured, float) / float(trace.length_m)
