@@ -18,8 +18,8 @@ typedef struct {
     double rtol;
     /* payload */
     double m, g, x0, v0;
-    /* payload rig, Iwan bank: how far beyond the span between the balance and x0 the motion last
-     * reversed before t0 (0: displaced monotonically from the balance; tether.c: last_reversal) */
+    /* payload rig, Iwan bank: how far beyond the span [-|x0|, |x0|] the motion last reversed
+     * before t0 (0: displaced monotonically from the balance; tether.c: last_reversal) */
     double last_reversal_beyond;
     /* payload rig: the tether line's own mass per length [kg/m], its share of the weight and of
      * the inertia (tether.h: payload_carried_mass, payload_effective_mass) */

@@ -22,8 +22,9 @@ def nuisance_parameters(trace: Trace) -> list[str]:
     """The nuisance parameters every discovery fit of ``trace`` frees, from the start model on, so
     that no effect is credited with what they explain: the offset of the measured column on every
     record; on a forced record that is not periodic the initial state x0, v0 (a record cut out of a
-    longer run starts in motion), with the Iwan bank's memory of that run (last_reversal_beyond, freed
-    only in models with the bank: fitting.fit_model) and the effective mass m within its band (the trace's
+    longer run starts in motion), and where the record starts in motion (tether.nuisance.starts_in_motion)
+    the Iwan bank's memory of that run (last_reversal_beyond, freed only in models with the bank:
+    fitting.fit_model); the effective mass m within its band (the trace's
     mass_uncertainty_rel, set from --mass-band; 0 = exact, not freed), or the force gain instead
     where force_gain_known is false (m and the gain are one nuisance in two forms); on a free
     vibration x0 (its release point, read off a column that carries the offset) but not m, which a
