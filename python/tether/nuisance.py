@@ -32,7 +32,7 @@ from .traces import Trace
 
 __all__ = ["NUISANCE", "MEASUREMENT", "STATE", "DEFAULT_MASS_BAND", "INPUT_GAIN_BOUNDS", "mass_band_rel",
            "check_mass_band", "mass_bounds", "mass_form", "refusal", "check_free", "freeable", "stated_values",
-           "nuisance_box",
+           "nuisance_box", "last_reversal_estimate", "last_reversal_grid",
            "drive_input", "measured_output", "moved_statement", "of_params_file"]
 
 #: the measurement parameters and their defaults (the engine's own list)
@@ -159,6 +159,13 @@ MOTION_STANDARD_ERRORS = 5.0
 #: a record started at rest begins at its balance, within this share of its half-swing of its mean
 #: (docs/nuisance-discovery.md: how it was chosen)
 AWAY_FROM_REST = 0.05
+#: the least distance beyond the span at which last_reversal_beyond starts, relative to the
+#: record's half-swing, and the backlash that marks the record's first turning point
+REVERSAL_START_MIN = 0.1
+#: the grid of last_reversal_beyond a fit scans (last_reversal_grid): its finest value relative to
+#: the record's span, and the ratio of neighbours
+REVERSAL_GRID_FINEST = 1.0 / 64.0
+REVERSAL_GRID_RATIO = 0.7
 
 
 def _initial_slope(trace: Trace) -> tuple[float, float]:
@@ -191,6 +198,41 @@ def starts_in_motion(trace: Trace) -> bool:
     return abs(v) >= MOTION_STANDARD_ERRORS * se or abs(y[0] - float(np.mean(y))) >= AWAY_FROM_REST * half_swing
 
 
+def last_reversal_estimate(trace: Trace) -> float:
+    """A start for last_reversal_beyond: where a steady oscillation would have last reversed, the
+    mirror of the record's first turning point (about its mean), on the side the payload comes
+    from; its distance beyond the span [-|x0|, |x0|] at least REVERSAL_START_MIN of the half-swing.
+    Not 0: there a reversal on the far side of x0 moves no element, so a fit cannot leave it."""
+    y = np.asarray(trace.measured, float)
+    x = y - float(np.mean(y))
+    half_swing = 0.5 * float(np.ptp(x))
+    if half_swing <= 0.0:
+        return 0.0
+    direction = 1.0 if _initial_velocity(trace) >= 0.0 else -1.0
+    turning = first_turning_point(direction * x, REVERSAL_START_MIN * half_swing)
+    beyond = max(abs(turning) - abs(x[0]), REVERSAL_START_MIN * half_swing)
+    return -direction * beyond
+
+
+def last_reversal_grid(trace: Trace) -> list[float]:
+    """The values of last_reversal_beyond a fit tries before it frees it with the rest: on either
+    side, from REVERSAL_GRID_FINEST of the record's span to the span, each REVERSAL_GRID_RATIO of
+    the next. The record tells the memory only through the elements its motion slips, so the
+    error is flat between values where an element's slip begins or ends: a search by gradients
+    stays where it starts, and the grid finds the right stretch first."""
+    span = float(np.ptp(np.asarray(trace.measured, float)))
+    steps = int(math.ceil(math.log(REVERSAL_GRID_FINEST) / math.log(REVERSAL_GRID_RATIO)))
+    sizes = [span * REVERSAL_GRID_RATIO ** i for i in range(steps + 1)]
+    return sorted([-d for d in sizes] + sizes)
+
+
+def first_turning_point(x: np.ndarray, backlash: float) -> float:
+    """The running maximum of x where x first falls ``backlash`` below it (x's maximum if never)."""
+    peak = np.maximum.accumulate(np.asarray(x, float))
+    back = np.nonzero(peak - x >= backlash)[0]
+    return float(peak[back[0]] if len(back) else peak[-1])
+
+
 def stated_values(trace: Trace) -> dict:
     """What the record states (or the tool assumes) for each nuisance parameter of its rig: the
     value a fitted one's change is measured from (the JSON's mass and initial state, no offsets,
@@ -216,10 +258,8 @@ def nuisance_box(trace: Trace, name: str, mass_band: float | None = None) -> tup
     if name == "last_reversal_beyond":
         # a reversal more than the record's span beyond it has slipped every element the record's
         # motion moves: the record cannot tell it from a nearer one, and a fit would drift there
-        # (from 0, the monotone displacement: where the record cannot tell a reversal from none, as
-        # at a start at rest, the fit stays there; docs/nuisance-discovery.md)
         span = float(np.ptp(np.asarray(trace.measured, float)))
-        return -span, span, 0.0, "linear"
+        return -span, span, last_reversal_estimate(trace), "linear"
     if name == "input_gain":
         return INPUT_GAIN_BOUNDS[0], INPUT_GAIN_BOUNDS[1], 1.0, "log"
     if name in MEASUREMENT:

@@ -17,6 +17,7 @@ from ..blas import in_one_blas_thread
 from ..models import IWAN_EPS, ModelSpec
 from ..traces import Trace, read_trace
 from .experiments import TraceExperiment, predict, trace_experiment
+from .memory import scan_memory
 from .parameters import (FIRST_STAGE, bounds_and_start, check_names, default_free_parameters, fmu_bounds,
                          fmu_defaults, model_spec)
 from .result import FitError, FitProgress, FitResult
@@ -199,7 +200,8 @@ def _stages(free_names: list[str]) -> list[tuple[str, list[str]]]:
     """(name, free) per stage: the elastic law and viscous damping (with the nuisance parameters,
     which a wrong mass or an offset would otherwise push into the law), then everything."""
     base = [n for n in free_names if n in FIRST_STAGE]
-    nuisance_free = [n for n in free_names if n in NZ.NUISANCE]
+    # a hysteresis law's memory is fitted with the law: beside a bank held at its start it runs off
+    nuisance_free = [n for n in free_names if n in NZ.NUISANCE and n not in NZ.HYSTERESIS_STATE]
     stages = []
     if base and len(base) + len(nuisance_free) < len(free_names):
         stages.append(("elastic law + viscous damping" + (" + nuisance" if nuisance_free else ""),
@@ -221,6 +223,9 @@ def _run_stages(problem: _Problem, n_starts: int, progress: Callable[[FitProgres
         if progress:
             progress(FitProgress(sname, si, len(stages), -1, float("nan"), 0, _time.perf_counter() - t_begin,
                                  free=list(names)))
+        if si == len(stages) - 1 and "last_reversal_beyond" in names:
+            current = scan_memory(current, problem.free, problem.exps[0].trace, problem.box,
+                                  lambda v: _residuals(problem, v))
         hold = {n: current[n] for n in problem.free if n not in names}
         for x in problem.exps:
             x.exp.settings = {**x.exp.settings, **hold}
@@ -289,6 +294,12 @@ def _predictions(problem: _Problem, values: Mapping[str, float]) -> tuple[dict, 
     tot = float(np.sqrt(sum(np.sum((p - np.asarray(x.trace.measured, float)) ** 2) for p, x in zip(pred, problem.exps))
                         / sum(len(x.trace.time) for x in problem.exps)))
     return {n: v for n, v in ps.items() if n not in NZ.NUISANCE}, pred, tot
+
+
+def _residuals(problem: _Problem, values: Mapping[str, float]) -> np.ndarray:
+    """The model's misfit of every trace's measured column, one vector."""
+    _, pred, _ = _predictions(problem, values)
+    return np.concatenate([p - np.asarray(x.trace.measured, float) for p, x in zip(pred, problem.exps)])
 
 
 def _statistics(problem: _Problem, r: idn.FitResult, current: Mapping[str, float], max_rel: float) -> dict:
