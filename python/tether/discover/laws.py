@@ -101,7 +101,7 @@ EFFECTS = (
         # to zero at a finite strain: on records of the latter Bouc-Wen left 3.4-10 x noise
         # (bench/hysteresis_law_gap.py). Its shape: the slip strains off the fit's grid (a load test
         # of twelve elements slipping between 4e-4 and 8e-3: 3.7 x noise on the grid, 1.2 x free)
-        Law("iwan", S.estimate_start, shapes=(IWAN_EPS_FIT,), rival="boucwen",
+        Law("iwan", S.iwan_starts, shapes=(IWAN_EPS_FIT,), rival="boucwen",
             reseed=(("restart_idle_elements", "the idle Iwan elements were restarted"),
                     ("finer_bank", "the Iwan bank was made finer"))),
         # the paper's loading and unloading branches, which replace the elastic law (their loading

@@ -222,6 +222,20 @@ def boucwen_from_kawabata_starts(base: ModelFit, new: ModelSpec, sc: _Scales,
     return [None, w]
 
 
+def iwan_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """As Bouc-Wen's: first a weak bank next to the base model (a thirtieth of the stiffness, its
+    slip strains up to the record's strain amplitude), from which the fit can only go down from
+    the base model's error; then tether.fit's equation-error estimate, which misreads a record that
+    goes slack while the model cannot (45 times the base model's error on a tuning record)."""
+    from ..fit.iwan_bank import iwan_params, iwan_slip_grid
+    from ..models import IWAN_FIT_ELEMENTS
+
+    w = _scale_elastic(dict(base.params), 0.97)
+    bank = iwan_params(iwan_slip_grid(sc.amp / sc.L0), np.full(IWAN_FIT_ELEMENTS, 0.03 * sc.ea / IWAN_FIT_ELEMENTS))
+    w.update(bank)
+    return [w, None]
+
+
 def cubic_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
     """The cubic law at the base's linear stiffness; and the data-based estimate where no hysteresis
     is named."""
