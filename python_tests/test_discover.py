@@ -864,3 +864,43 @@ def test_the_iwan_candidate_first_starts_next_to_the_model_it_extends(tmp_path):
     sim = simulate(tr, "linear+iwan", law, nuisance={n: v for n, v in first.items() if n in NZ.NUISANCE})
     rms = float(np.sqrt(np.mean((sim.predicted - tr.measured) ** 2)))
     assert rms < 1.5 * lin.rms, (rms, lin.rms)
+
+
+def test_the_rival_law_starts_from_the_fitted_nuisance_and_beside_the_model(tmp_path):
+    """rival_law's fits of the Iwan bank in Bouc-Wen's place start from the mass, initial state and
+    offset the search fitted (before: from the record's stated mass, 15 % off here), the first of
+    them a weak bank beside the final model (simulated: within 1.5 x that model's error), and with
+    the bank's slip strains free where Bouc-Wen's shape terms were."""
+    from dataclasses import replace as _replace
+
+    from tether import nuisance as NZ
+    from tether.api import simulate
+    from tether.models import IWAN_EPS_FIT, parse_model
+
+    stem, gen = _write(tmp_path, "cut", "forced", {"hysteresis", "slack"}, 7, noise=1e-4, rate=100.0, duration_s=6.0,
+                       nuisance=True, mass_factor=1.15, offset_noise=2.0, preroll_s=3.0)
+    tr, sigma, sc, part, first, _ = _record_and_part(stem)
+    nz = D.nuisance_parameters(tr)
+    lin = D.fit_model(tr, parse_model("linear", "forced"), (), [nuisance_start(tr, nz), None], sc, nuisance=nz)
+    spec = parse_model("linear+boucwen+slack", "forced")
+    cur = _replace(lin, spec=spec, effects=("hysteresis", "slack"),
+                   params={**lin.params, "bw_A": 1e-3, "bw_beta": 1.0, "bw_gamma": 1.0})
+    seen = []
+
+    def fit(t, sp, eff, starts, baseline_rms=None, cap_factor=1.0, extra=()):
+        seen.append((list(starts), tuple(extra)))
+        return _replace(cur, ok=False, message="recorded")
+
+    rival.rival_law(tr, part, first, cur, 10 * sigma, sigma, fit, {}, ["hysteresis", "slack"], lambda s: None,
+                    incumbent_shaped=True)
+    (begins, extra), = seen
+    assert extra == tuple(IWAN_EPS_FIT)
+    fitted = {n: v for n, v in cur.params.items() if n in NZ.NUISANCE}
+    assert abs(fitted["m"] / tr.payload_mass_kg - 1.0) > 0.05
+    for s in begins:
+        if s is not None:
+            assert {n: s[n] for n in fitted} == fitted
+    first_start = begins[0]
+    law = {n: v for n, v in first_start.items() if n not in NZ.NUISANCE}
+    sim = simulate(tr, "linear+iwan+slack", law, nuisance={n: v for n, v in first_start.items() if n in NZ.NUISANCE})
+    assert float(np.sqrt(np.mean((sim.predicted - tr.measured) ** 2))) < 1.5 * cur.rms

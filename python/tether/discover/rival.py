@@ -10,10 +10,11 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K, IWAN_K_FIT
+from .. import nuisance as NZ
 from ..traces import Trace
 from .fitting import _heldout, ModelFit
 from .judge import CRITERIA, _gap, _heldout_judges, _law_judged, _shape_judged, bic_change
-from .laws import _law_of, _with_law, RIVAL_LAWS, WIDER_LAWS
+from .laws import _law_of, _with_law, RIVAL_LAWS, SHAPE_TERMS, WIDER_LAWS
 from .records import Refinement
 
 
@@ -21,6 +22,9 @@ from .records import Refinement
 #: power term was kept (the load rig with Iwan elements and a power term simulates 6 x slower than
 #: with the cubic alone: 0.098 s against 0.017 s on 2478 samples)
 RESHAPED_RIVAL_CAP_FACTOR = 4.0
+#: and where the rival is fitted with its shape terms free (the Iwan bank's eight slip strains
+#: beside its eight stiffnesses: as the bank's own last stages get, IWAN_STAGE_CAP_FACTOR)
+SHAPED_RIVAL_CAP_FACTOR = 3.0
 
 
 #: the least time cap of the Iwan bank's last stages (restart, finer bank), as a multiple of the
@@ -56,7 +60,8 @@ def _estimated(trace: Trace, spec, fixed: dict | None = None) -> dict:
 
 
 def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
-              rivals: dict, added: Sequence[str], say: Callable[[str], None], elastic_reshaped: bool = False):
+              rivals: dict, added: Sequence[str], say: Callable[[str], None], elastic_reshaped: bool = False,
+              incumbent_shaped: bool = False):
     """An effect's law is chosen in the step that names the effect, beside the effects named so far;
     an effect named after it can change which law fits best (the generator's Iwan hysteresis with
     slack: Bouc-Wen won the hysteresis step, 10.4 x noise in the end, where the Iwan bank with slack
@@ -75,7 +80,10 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     the hysteresis step (its power term kept): the rival is fitted then too, whatever was named
     last, for the law was chosen beside a cubic that the power term has replaced (the generator's
     power-law tether with Iwan friction: Bouc-Wen won beside the cubic, 2.86 against 2.87 x noise,
-    and stopped at 1.73 x with the power term beside it). Returns the model, its held-out error
+    and stopped at 1.73 x with the power term beside it). ``incumbent_shaped``: the law in place
+    has its shape terms free; the rival is then fitted with its own widest shape group free, like
+    against like (the generator's Iwan friction with slack: Bouc-Wen with its shape at 2.07 x noise
+    kept its place against the bank on its grid, 3.80 x). Returns the model, its held-out error
     and a Refinement or None."""
 
     effect = "hysteresis"
@@ -89,10 +97,12 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     other = next(x for x in laws if x != law)
     new = replace(cur.spec, hysteresis=other).for_experiment(trace.experiment)
     rival = rivals.get(other) or _estimated(trace, new)
-    mine = {k: v for k, v in cur.params.items() if k in new.parameters and k not in HYSTERESIS_PARAMETERS[law]}
+    mine = {**_fitted_nuisance(cur),
+            **{k: v for k, v in cur.params.items() if k in new.parameters and k not in HYSTERESIS_PARAMETERS[law]}}
     theirs = {k: v for k, v in rival.items() if k in HYSTERESIS_PARAMETERS[other]}
     their_elastic = {k: v for k, v in rival.items() if k in ELASTIC_PARAMETERS and k in new.parameters}
-    starts = [{**mine, **theirs},
+    starts = [*_own_starts(trace, cur, new, other, mine),
+              {**mine, **theirs},
               {**mine, **theirs, **their_elastic},
               {**mine, **theirs, **_law_converted(cur.params, law, theirs, float(trace.length_m))},
               None]
@@ -103,8 +113,33 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
         starts.insert(3, _estimated(trace, new, power))
     # (a power term's law simulates several times slower than the cubic's: its fits get the time)
     factor = RESHAPED_RIVAL_CAP_FACTOR if elastic_reshaped else 1.0
+    shapes = max(SHAPE_TERMS.get((effect, other), ((),)), key=len) if incumbent_shaped else ()
+    if shapes:
+        factor *= SHAPED_RIVAL_CAP_FACTOR
     return _law_swapped(trace, part, first, cur, cur_held, sigma, fit, new, effect, law, starts,
-                        lambda k: k in HYSTERESIS_PARAMETERS[other], say, cap_factor=factor)
+                        lambda k: k in HYSTERESIS_PARAMETERS[other], say, cap_factor=factor,
+                        **({"extra": tuple(shapes)} if shapes else {}))
+
+
+def _fitted_nuisance(cur: ModelFit) -> dict:
+    """The nuisance values ``cur`` fitted (the mass, the initial state, the offsets): a law put in
+    another's place starts from them, not from the record's stated values."""
+    return {k: float(v) for k, v in cur.params.items() if k in NZ.NUISANCE}
+
+
+def _own_starts(trace: Trace, cur: ModelFit, new, law: str, mine: dict) -> list[dict]:
+    """The registry's starts of ``law`` put into the final model without its hysteresis (``mine``:
+    its other terms): a weak force beside that model, from which the fit can only go down (the
+    hysteresis step's fit of the rival, without the effects named after it, can start far off:
+    the Iwan bank fitted before slack, 26.9 x noise at the end where Bouc-Wen stood at 2.5 x)."""
+    from .laws import EFFECT
+    from .scales import _scales
+
+    entry = EFFECT["hysteresis"].law(law)
+    if entry is None:
+        return []
+    base = replace(cur, spec=replace(cur.spec, hysteresis="none"), params=dict(mine))
+    return [s for s in entry.starts(base, new, _scales(trace), trace) if s is not None]
 
 
 def _law_swapped(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
@@ -371,6 +406,7 @@ def _wider_law_starts(trace: Trace, cur: ModelFit, new, effect: str, law: str) -
     own = STIFFNESS_PARAMETERS if effect == "nonlinear_stiffness" else CREEP_PARAMETERS
     mine = {k: float(v) for k, v in cur.params.items() if k in new.parameters and k not in own[law]}
     estimate = {k: v for k, v in _estimated(trace, new, mine).items() if k in own[_law_of(new, effect)]}
+    mine.update(_fitted_nuisance(cur))
     starts = [{**mine, **estimate}]
     if effect == "nonlinear_stiffness":
         eps = np.asarray(trace.measured, float) / float(trace.length_m)

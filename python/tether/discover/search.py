@@ -12,7 +12,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..blas import in_one_blas_thread
-from ..models import parse_model
+from ..models import HYSTERESIS_PARAMETERS, parse_model
 from ..traces import Trace
 from .document import _evidence, _slack_seen_by, ordinal
 from .evidence import disagreement, regime_table, regimes, signatures
@@ -610,13 +610,16 @@ class Search:
         """The hysteresis law fitted again with its rival in its place (rival_law), and the new law's
         own shape terms (the Iwan bank's slip strains, Bouc-Wen's exponent) where it is kept."""
         added = [s.effect for s in self.steps if s.effect and s.effect in self.cur.effects]
+        law = self.cur.spec.hysteresis
+        shaped = any(k in HYSTERESIS_PARAMETERS.get(law, ()) for k in self.shape_free)
         self.rival_kept = self.adopt(rival.rival_law(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
-            lambda tr, sp, eff, starts, baseline_rms=None, cap_factor=1.0: self.fit(
-                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms,
+            lambda tr, sp, eff, starts, baseline_rms=None, cap_factor=1.0, extra=(): self.fit(
+                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, extra, baseline_rms=baseline_rms,
                 cap_factor=cap_factor),
             self.rivals["hysteresis"], added, self.say,
-            elastic_reshaped=any(r.accepted and r.effect == "nonlinear_stiffness" for r in self.refinements)),
+            elastic_reshaped=any(r.accepted and r.effect == "nonlinear_stiffness" for r in self.refinements),
+            incumbent_shaped=shaped),
             "while the rival law was fitted")
         if self.rival_kept:
             self.reshape(set(self.cur.effects) - {"hysteresis"})
