@@ -904,3 +904,52 @@ def test_the_rival_law_starts_from_the_fitted_nuisance_and_beside_the_model(tmp_
     law = {n: v for n, v in first_start.items() if n not in NZ.NUISANCE}
     sim = simulate(tr, "linear+iwan+slack", law, nuisance={n: v for n, v in first_start.items() if n in NZ.NUISANCE})
     assert float(np.sqrt(np.mean((sim.predicted - tr.measured) ** 2))) < 1.5 * cur.rms
+
+
+def test_a_rival_that_loses_only_on_the_held_out_part_gets_its_reseeding_moves_first():
+    """_law_swapped: the rival's fit lowers the BIC and the error on the whole record but predicts
+    the held-out part worse; where its law has reseeding moves, they run on it before the verdict,
+    and the reseeded fit is judged again against the law in place (kept here: better on both). A
+    reseed that changes nothing leaves the verdict as it was; without reseeding moves none runs."""
+    from dataclasses import replace as _replace
+
+    from tether.models import parse_model
+
+    sigma, n = 1e-4, 2000
+    cur = fitting.ModelFit(spec=parse_model("linear+boucwen+slack", "forced"), effects=("hysteresis", "slack"),
+                           params={}, free=["EA", "c0", "bw_A", "bw_beta", "bw_gamma"], rms=2.07 * sigma,
+                           predicted=np.zeros(1))
+    iwan_free = ["EA", "c0", *models.IWAN_K_FIT]
+    rival_fit = _replace(cur, spec=parse_model("linear+iwan+slack", "forced"), rms=1.75 * sigma, free=iwan_free,
+                         params={k: 1.0 for k in iwan_free})
+    reseeded_fit = _replace(rival_fit, rms=1.0 * sigma)
+    held = {id(cur): 1.71 * sigma, id(rival_fit): 1.97 * sigma, id(reseeded_fit): 1.05 * sigma}
+
+    from types import SimpleNamespace
+
+    whole, part = SimpleNamespace(time=np.zeros(n)), SimpleNamespace(time=np.zeros(n // 2))
+
+    def fit(t, sp, eff, starts, **kw):
+        return rival_fit if t is whole else _replace(rival_fit, params={"part": 1.0})
+
+    calls = []
+
+    def run(reseed):
+        orig = rival._heldout
+        rival._heldout = lambda trace, spec, params, first: held[id(rival_fit)]
+        try:
+            return rival._law_swapped(whole, part, 0, cur, held[id(cur)], sigma, fit, rival_fit.spec,
+                                      "hysteresis", "boucwen", [None], lambda k: True, lambda s: None, reseed=reseed)
+        finally:
+            rival._heldout = orig
+
+    def better(m, h):
+        calls.append(m)
+        return reseeded_fit, held[id(reseeded_fit)]
+
+    m, h, r = run(better)
+    assert calls == [rival_fit] and m is reseeded_fit and r.accepted and "after its reseeding moves" in r.verdict
+    m, h, r = run(lambda m, h: (m, h))
+    assert m is cur and not r.accepted and "held-out part gets worse" in r.verdict
+    m, h, r = run(None)
+    assert m is cur and not r.accepted

@@ -61,7 +61,7 @@ def _estimated(trace: Trace, spec, fixed: dict | None = None) -> dict:
 
 def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
               rivals: dict, added: Sequence[str], say: Callable[[str], None], elastic_reshaped: bool = False,
-              incumbent_shaped: bool = False):
+              incumbent_shaped: bool = False, reseed: Callable | None = None):
     """An effect's law is chosen in the step that names the effect, beside the effects named so far;
     an effect named after it can change which law fits best (the generator's Iwan hysteresis with
     slack: Bouc-Wen won the hysteresis step, 10.4 x noise in the end, where the Iwan bank with slack
@@ -83,8 +83,10 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     and stopped at 1.73 x with the power term beside it). ``incumbent_shaped``: the law in place
     has its shape terms free; the rival is then fitted with its own widest shape group free, like
     against like (the generator's Iwan friction with slack: Bouc-Wen with its shape at 2.07 x noise
-    kept its place against the bank on its grid, 3.80 x). Returns the model, its held-out error
-    and a Refinement or None."""
+    kept its place against the bank on its grid, 3.80 x). ``reseed(model, held) -> (model, held)``:
+    the rival law's reseeding moves, run on the rival's fit where it lowers the BIC and the error
+    but predicts the held-out part worse, before the verdict (the law in place had its own stages).
+    Returns the model, its held-out error and a Refinement or None."""
 
     effect = "hysteresis"
     law = cur.spec.hysteresis
@@ -117,7 +119,7 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     if shapes:
         factor *= SHAPED_RIVAL_CAP_FACTOR
     return _law_swapped(trace, part, first, cur, cur_held, sigma, fit, new, effect, law, starts,
-                        lambda k: k in HYSTERESIS_PARAMETERS[other], say, cap_factor=factor,
+                        lambda k: k in HYSTERESIS_PARAMETERS[other], say, reseed=reseed, cap_factor=factor,
                         **({"extra": tuple(shapes)} if shapes else {}))
 
 
@@ -144,7 +146,7 @@ def _own_starts(trace: Trace, cur: ModelFit, new, law: str, mine: dict) -> list[
 
 def _law_swapped(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
                  new, effect: str, law: str, starts: list, reported: Callable[[str], bool],
-                 say: Callable[[str], None], **fit_options):
+                 say: Callable[[str], None], reseed: Callable | None = None, **fit_options):
     """``new`` (``cur`` with another law of ``effect`` in ``law``'s place) fitted from ``starts`` and
     judged as a rival law is (_law_judged: a lower BIC, the held-out prediction no worse; the
     held-out fit asked only where the whole record's error falls). Returns the model (``new``'s fit
@@ -161,11 +163,28 @@ def _law_swapped(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held:
             pf = fit(part, new, cur.effects, [fm.params], **fit_options)
             held = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
         ok, verdict = _law_judged(cur.rms, fm.rms, bic, cur_held, held, sigma, law)
+        if not ok and reseed is not None and bic < 0.0 and fm.rms < cur.rms:
+            fm, held, bic, ok, verdict = _reseeded_rival(cur, cur_held, fm, held, bic, verdict, sigma, law,
+                                                         len(trace.time), reseed, say)
         terms = tuple(k for k in fm.free if reported(k))
     r = Refinement(effect, terms, cur.rms, fm.rms if fm.ok else float("inf"), cur_held, held, bic, ok, verdict,
                    {k: float(fm.params[k]) for k in terms}, law=f"{law} -> {other}")
     say(f"  law of {effect}, {law} -> {other}: {'kept' if ok else 'not kept'}: {verdict}")
     return (fm, held, r) if ok else (cur, cur_held, r)
+
+
+def _reseeded_rival(cur: ModelFit, cur_held: float, fm: ModelFit, held: float, bic: float, verdict: str,
+                    sigma: float, law: str, n: int, reseed: Callable, say: Callable[[str], None]):
+    """The rival's fit ``fm`` (better on the whole record, worse on the held-out part) after its
+    law's reseeding moves, judged again against ``cur``; (model, held, bic, ok, verdict), the
+    rival's own where the moves change nothing."""
+    say(f"  law of hysteresis, {law} -> {_law_of(fm.spec, 'hysteresis')}: {verdict}; its reseeding moves first")
+    fm2, held2 = reseed(fm, held)
+    if fm2 is fm:
+        return fm, held, bic, False, verdict
+    bic2 = bic_change(cur, fm2, n)
+    ok2, verdict2 = _law_judged(cur.rms, fm2.rms, bic2, cur_held, held2, sigma, law)
+    return fm2, held2, bic2, ok2, verdict2 + " (after its reseeding moves)"
 
 
 #: an Iwan element carrying less than this share of the bank's stiffness is idle: its stiffness is

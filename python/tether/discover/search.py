@@ -591,16 +591,29 @@ class Search:
             kept = False
             for move, what in law.reseed:
                 if not self.budget_hit:
-                    mf = self.model_cap_factor(self.cur)
-                    kept |= self.adopt(getattr(rival, move)(
-                        self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
-                        lambda tr, sp, eff, starts, extra=(), cap_factor=1.0, _mf=mf, **kw:
-                        self.shape_fit(tr, sp, eff, starts, extra, cap_factor=cap_factor * _mf, **kw),
-                        self.say), f"while {what}")
+                    kept |= self.adopt(self.reseed_move(move, self.cur, self.cur_held), f"while {what}")
             if not kept or self.budget_hit or _gap(self.cur.rms, self.sigma) < CRITERIA.iwan_stages_gap * self.sigma:
                 continue
             self.free_shapes(tuple(self.cur.shape))
             self.reshape(self.refined_effects() | {effect}, rival.reseeded_cap_factor(self.cur))
+
+    def reseed_move(self, move: str, m: ModelFit, held: float):
+        """One reseeding move of the registry (a function of rival.py) on ``m``: (model, held-out
+        error, Refinement or None)."""
+        mf = self.model_cap_factor(m)
+        return getattr(rival, move)(
+            self.trace, self.part, self.first, m, held, self.sigma,
+            lambda tr, sp, eff, starts, extra=(), cap_factor=1.0, **kw:
+            self.shape_fit(tr, sp, eff, starts, extra, cap_factor=cap_factor * mf, **kw), self.say)
+
+    def reseeded(self, m: ModelFit, held: float) -> tuple[ModelFit, float]:
+        """``m`` after its hysteresis law's reseeding moves (Law.reseed), each kept where it is
+        judged better, as the reseed stage does; for the rival law's verdict (rival_law)."""
+        law = EFFECT["hysteresis"].law(m.spec.hysteresis)
+        for move, _ in (law.reseed if law else ()):
+            if not self.budget_hit:
+                m, held, _ = self.reseed_move(move, m, held)
+        return m, held
 
     def has_rival(self) -> bool:
         """The hysteresis step fitted the rival law (its fits kept for rival_law)."""
@@ -619,7 +632,7 @@ class Search:
                 cap_factor=cap_factor),
             self.rivals["hysteresis"], added, self.say,
             elastic_reshaped=any(r.accepted and r.effect == "nonlinear_stiffness" for r in self.refinements),
-            incumbent_shaped=shaped),
+            incumbent_shaped=shaped, reseed=self.reseeded),
             "while the rival law was fitted")
         if self.rival_kept:
             self.reshape(set(self.cur.effects) - {"hysteresis"})
