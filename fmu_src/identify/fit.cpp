@@ -38,6 +38,14 @@ double t_quantile_975(int dof)
            (79 * z9 + 776 * z7 + 1482 * z5 - 1920 * z3 - 945 * z) / (92160 * n * n * n * n);
 }
 
+// CPU time of the calling thread so far, in nanoseconds
+long long thread_cpu_ns()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (long long)ts.tv_sec * 1000000000LL + ts.tv_nsec;
+}
+
 struct Problem {
     std::vector<kt::Prepared> exps;
     std::vector<int> par;      // parameter table indices of the free parameters
@@ -78,6 +86,9 @@ struct Problem {
         return true;
     }
 
+    // CPU seconds of the threads batch() started (the calling thread's own are read by kt_fit)
+    std::atomic<long long> *helper_cpu_ns = nullptr;
+
     // evaluate residuals at several points in parallel
     void batch(const std::vector<VectorXd> &pts, std::vector<VectorXd> &rs, std::vector<char> &ok) const
     {
@@ -92,8 +103,12 @@ struct Problem {
         };
         const std::size_t nt = std::min<std::size_t>((std::size_t)std::max(1, n_threads), m);
         if (nt <= 1) { work(0, 1); return; }
+        auto helper = [&](std::size_t first, std::size_t stride) {
+            work(first, stride);
+            if (helper_cpu_ns) *helper_cpu_ns += thread_cpu_ns();
+        };
         std::vector<std::thread> th;
-        for (std::size_t i = 1; i < nt; ++i) th.emplace_back(work, i, nt);
+        for (std::size_t i = 1; i < nt; ++i) th.emplace_back(helper, i, nt);
         work(0, nt);
         for (auto &x : th) x.join();
     }
@@ -101,6 +116,7 @@ struct Problem {
 
 struct Counters {
     long evaluations = 0;
+    long jacobian_evaluations = 0; // of evaluations: the finite-difference Jacobians' columns
     int iterations = 0;
     std::vector<double> history;
 };
@@ -115,6 +131,7 @@ bool one_sided_column(const Problem &P, const VectorXd &th, const VectorXd &r, i
     if (a[j] > P.hi[j] || a[j] < P.lo[j]) return false;
     std::string err;
     ++C.evaluations;
+    ++C.jacobian_evaluations;
     if (!P.residuals(a, ra, err)) return false;
     J.col(j) = (ra - r) / step;
     return true;
@@ -147,6 +164,7 @@ bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h,
     std::vector<char> ok;
     P.batch(pts, rs, ok);
     C.evaluations += (long)pts.size();
+    C.jacobian_evaluations += (long)pts.size();
     J.resize(r.size(), k);
     std::size_t at = 0;
     for (int j = 0; j < k; ++j) {
@@ -405,6 +423,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
            kt_fit_result *res)
 {
     const auto t0 = std::chrono::steady_clock::now();
+    const long long cpu0 = thread_cpu_ns();
     std::string &err = kt::last_error;
     err.clear();
     try {
@@ -419,6 +438,8 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
 
         Problem P;
         P.n_threads = o.n_threads;
+        std::atomic<long long> helper_cpu_ns{0};
+        P.helper_cpu_ns = &helper_cpu_ns;
         kt::Limits limits;
         limits.monotonic = o.deadline_monotonic > 0 ? o.deadline_monotonic : 0.0;
         limits.cpu = o.deadline_cpu > 0 ? o.deadline_cpu : 0.0;
@@ -565,6 +586,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         res->n_residuals = N;
         res->dof = dof;
         res->evaluations = (int)C.evaluations;
+        res->jacobian_evaluations = (int)C.jacobian_evaluations;
         res->iterations = C.iterations;
         res->best_start = best_start;
         res->status = best.status;
@@ -616,6 +638,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         }
         std::snprintf(res->report, sizeof res->report, "%s", report.c_str());
         res->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        res->cpu_seconds = 1e-9 * (double)(thread_cpu_ns() - cpu0 + helper_cpu_ns.load());
         return best.status;
     } catch (const std::exception &ex) {
         err = std::string("kt_fit: ") + ex.what();

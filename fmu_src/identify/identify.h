@@ -27,7 +27,7 @@ extern "C" {
 #define KT_API
 #endif
 
-#define KT_IDENTIFY_API_VERSION 6
+#define KT_IDENTIFY_API_VERSION 7
 
 /* ---- parameter table ------------------------------------------------------------------------ */
 #define KT_PAR_REAL 0   /* a Real parameter: a double field of tether_params */
@@ -192,10 +192,12 @@ typedef struct {
     double condition;          /* sigma_max / sigma_min */
     int n_residuals, dof;
     int evaluations;           /* simulations of the whole data set (each = one per experiment) */
+    int jacobian_evaluations;  /* of evaluations: those of finite-difference Jacobian columns */
     int iterations;            /* LM iterations, all starts */
     int best_start;            /* which start gave the optimum (0 = the given start) */
     int status;                /* 0 converged, 1 max iterations, < 0 failure */
     double seconds;            /* wall-clock time of the fit */
+    double cpu_seconds;        /* CPU time of the fit: the calling thread's and its helper threads' */
     char message[256];         /* why it stopped */
     char report[4096];         /* the undetermined directions, named, one per line */
 } kt_fit_result;
