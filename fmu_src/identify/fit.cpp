@@ -198,7 +198,25 @@ struct LMResult {
     double cost = std::numeric_limits<double>::infinity();
     int status = -1;
     std::string message;
+    // the finite-difference Jacobian at th, when the fit's last one was computed there (central or
+    // forward as `central` says); empty otherwise. The statistics reuse it: the same bits as a new one
+    MatrixXd J;
+    bool central = false;
 };
+
+// J + (dr - J s) s^T / (s^T s): Broyden's rank-one update of the Jacobian after the step s, which
+// changed the residuals by dr (the secant condition J s = dr holds afterwards; directions
+// orthogonal to s keep their columns' action)
+void broyden_update(MatrixXd &J, const VectorXd &s, const VectorXd &dr)
+{
+    const double ss = s.squaredNorm();
+    if (!(ss > 0)) return;
+    J += ((dr - J * s) / ss) * s.transpose();
+}
+
+// How many rank-one updates a Levenberg-Marquardt run may chain between finite-difference
+// Jacobians: none with central differences (they polish the optimum), else the option's count.
+int broyden_limit(const kt_fit_options &o) { return o.central_differences == 1 ? 0 : std::max(0, o.broyden_updates); }
 
 LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit_options &o, Counters &C, int start_no,
                              int stage = 0, int n_stages = 1)
@@ -226,14 +244,25 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
     R.message = "maximum number of iterations reached";
     MatrixXd J;
     bool need_jacobian = true;
+    // rank-one updates (broyden_update) since the last finite-difference Jacobian; a J that is one
+    // never ends the fit: where it would (gradient small, step small, a small decrease, no
+    // decrease), the finite-difference Jacobian is computed there and the iteration redone
+    int updates = 0;
+    const int max_updates = broyden_limit(o);
+    bool j_at_th = false; // J is a finite-difference Jacobian at th
     for (int it = 0; it < o.max_iterations; ++it) {
         ++C.iterations;
-        if (need_jacobian && !jacobian(P, th, r, o.fd_step, o.central_differences != 0, J, C)) {
-            if (!stopped_by_deadline()) {
-                R.status = -1;
-                R.message = "a Jacobian column failed to simulate";
+        if (need_jacobian) {
+            j_at_th = false;
+            if (!jacobian(P, th, r, o.fd_step, o.central_differences != 0, J, C)) {
+                if (!stopped_by_deadline()) {
+                    R.status = -1;
+                    R.message = "a Jacobian column failed to simulate";
+                }
+                break;
             }
-            break;
+            updates = 0;
+            j_at_th = true;
         }
         need_jacobian = false;
         const MatrixXd A = J.transpose() * J;
@@ -244,9 +273,20 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
             const bool at_lo = th[j] <= P.lo[j] && g[j] > 0, at_hi = th[j] >= P.hi[j] && g[j] < 0;
             if (!at_lo && !at_hi) gmax = std::max(gmax, std::fabs(g[j]));
         }
-        if (gmax <= o.gtol * std::max(cost, 1e-300)) { R.status = 0; R.message = "gradient small"; break; }
+        // an iteration redone with a better J (not counted as one)
+        auto redo_iteration = [&]() {
+            --it;
+            --C.iterations;
+        };
+        if (gmax <= o.gtol * std::max(cost, 1e-300)) {
+            if (updates > 0) { need_jacobian = true; redo_iteration(); continue; }
+            R.status = 0;
+            R.message = "gradient small";
+            break;
+        }
         VectorXd dscale = A.diagonal().cwiseMax(1e-12 * std::max(1e-300, A.diagonal().maxCoeff()));
-        bool accepted = false, converged = false;
+        bool accepted = false, converged = false, redo = false;
+        VectorXd th_before = th, r_before = r;
         // (the loop can try several lambdas side by side, n_cand > 1; measured: it did not save
         // iterations on the full-model benchmark, so one candidate per try)
         for (int tries = 0; tries < 30; ++tries) {
@@ -265,6 +305,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
                 preds.push_back(-(g.dot(step) + 0.5 * step.dot(A * step)));
                 cand.push_back(tn);
             }
+            if (small && updates > 0) { need_jacobian = true; redo = true; break; }
             if (small) { converged = true; R.message = "step small"; break; }
             P.batch(cand, rs, oks);
             C.evaluations += (long)cand.size();
@@ -284,6 +325,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
                 cost = cn;
                 lambda = lams[best];
                 C.history.push_back(cost);
+                j_at_th = false;
                 // shrink lambda fast on good steps: the weak directions of an ill-conditioned
                 // problem move only once lambda * diag(J^T J) is below their curvature
                 if (rho > 0.5) lambda /= 10.0;
@@ -298,6 +340,22 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
                     converged = true;
                     R.message = "cost decrease far below the residual variance";
                 }
+                // a small decrease along an updated J's step: go on with a finite-difference one
+                if (converged && updates > 0) { converged = false; need_jacobian = true; }
+                break;
+            }
+            // no decrease along an updated J's step: the trial's secant updates it once more (and
+            // lambda grows), or, at the limit of updates, a finite-difference J (the same lambda)
+            if (updates > 0) {
+                if (updates < max_updates && oks[0]) {
+                    broyden_update(J, cand[0] - th, rs[0] - r);
+                    ++updates;
+                    lambda *= nu;
+                    nu *= 2.0;
+                } else {
+                    need_jacobian = true;
+                }
+                redo = true;
                 break;
             }
             lambda *= nu;
@@ -305,6 +363,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
             if (lambda > 1e16) { converged = true; R.message = "no decrease found (lambda at its limit)"; break; }
         }
         if (stopped_by_deadline()) break;
+        if (redo) { redo_iteration(); continue; }
         if (o.verbose)
             std::fprintf(stderr, "[kt_fit] start %d it %d cost %.6e lambda %.2e evals %ld\n", start_no, it, cost, lambda,
                          C.evaluations);
@@ -315,11 +374,20 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
         }
         if (converged) { R.status = 0; break; }
         if (!accepted) { R.status = 0; R.message = "no decrease found"; break; }
-        need_jacobian = true;
+        if (!need_jacobian && updates < max_updates) {
+            broyden_update(J, th - th_before, r - r_before);
+            ++updates;
+        } else {
+            need_jacobian = true;
+        }
     }
     R.th = th;
     R.r = r;
     R.cost = cost;
+    if (j_at_th && updates == 0) {
+        R.J = J;
+        R.central = o.central_differences != 0;
+    }
     return R;
 }
 
@@ -416,6 +484,7 @@ void kt_fit_default_options(kt_fit_options *o)
     o->progress = nullptr;
     o->progress_ctx = nullptr;
     o->continuous_input = 1;
+    o->broyden_updates = 0;
 }
 
 int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const *names, const double *lower,
@@ -561,7 +630,9 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
 
         // statistics at the optimum: a fresh Jacobian there
         MatrixXd J;
-        if (!jacobian(P, best.th, best.r, o.fd_step, o.central_differences != 0, J, C)) {
+        const bool central = o.central_differences != 0;
+        if (best.J.rows() == P.n_res && best.J.cols() == k && best.central == central) J = best.J;
+        else if (!jacobian(P, best.th, best.r, o.fd_step, central, J, C)) {
             err = P.out_of_time() ? "kt_fit: " + P.limits->message() : "kt_fit: the Jacobian at the optimum failed to simulate";
             return -1;
         }

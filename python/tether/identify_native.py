@@ -27,7 +27,7 @@ __all__ = ["Experiment", "FitResult", "MEASUREMENT_DEFAULTS", "PROGRESS", "exper
 
 INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
 #: the engine's KT_IDENTIFY_API_VERSION this binding is written for
-API_VERSION = 7
+API_VERSION = 8
 #: parameter kinds of the engine's table (identify.h KT_PAR_*)
 KIND_REAL, KIND_SWITCH, KIND_INPUT, KIND_MEASUREMENT = 0, 1, 2, 3
 #: the measurement parameters of an experiment (identify.h KT_PAR_MEASUREMENT) and their defaults:
@@ -63,7 +63,7 @@ class _Options(C.Structure):
         ("output_stride", C.c_int), ("horizon_stages", C.c_int), ("verbose", C.c_int),
         ("progress", C.c_void_p), ("progress_ctx", C.c_void_p),
         ("deadline_monotonic", C.c_double), ("deadline_cpu", C.c_double), ("deadline_thread_cpu", C.c_double),
-        ("continuous_input", C.c_int),
+        ("continuous_input", C.c_int), ("broyden_updates", C.c_int),
     ]
 
 
@@ -363,7 +363,8 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
 
     options: any field of kt_fit_options (max_iterations, ftol, xtol, gtol, fd_step,
     central_differences, n_starts, start_spread, seed, n_threads, rtol, singular_rel_tol,
-    max_rel_std, stat_tol, output_stride, horizon_stages, continuous_input, verbose, deadline_monotonic,
+    max_rel_std, stat_tol, output_stride, horizon_stages, continuous_input, broyden_updates, verbose,
+    deadline_monotonic,
     deadline_cpu and deadline_thread_cpu (readings of time.CLOCK_MONOTONIC,
     time.CLOCK_PROCESS_CPUTIME_ID and the calling thread's time.CLOCK_THREAD_CPUTIME_ID, see
     :func:`deadlines`; the fit raises DeadlinePassed, a RuntimeError "kt_fit: stopped: the ...
