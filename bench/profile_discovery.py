@@ -8,7 +8,8 @@ engine's fits, the fits, their simulations (median per fit, total) and the share
 were finite-difference Jacobian columns, the named effects and rmse_final; then the totals, with
 the machine yardstick of the speed bench measured in the same run.
 
-    python bench/profile_discovery.py [--out DIR] [--only SUBSTRING] [--json FILE]
+    python bench/profile_discovery.py [--out DIR] [--only NAME,NAME] [--json FILE] [--compare FILE]
+                                      [--engine OPTION=VALUE ...]
 
 --json FILE writes the rows (with each record's OUT.json essentials) for a later comparison:
 ``--compare FILE`` prints, beside this run, the named effects and rmse_final of that earlier one
@@ -34,9 +35,12 @@ sys.path.insert(0, str(REPO / "python_tests"))
 #: the looser rule of a change that may move results (issue 25's speed work): the same named
 #: effects and rmse_final within this relative difference
 RMSE_REL = 0.02
+#: each discovery's wall-time budget: far beyond any record's need, so that the results do not
+#: depend on the machine's load (the default 900 s ran out on a busy machine)
+BUDGET_S = 100000.0
 
 
-def _one(stem: str, result: str, stats: str) -> int:
+def _one(stem: str, result: str, stats: str, budget: str, engine: str = "{}") -> int:
     """Discover ``stem`` in this process, the engine's fits counted; write the counts to ``stats``."""
     from tether.blas import limit_process
 
@@ -52,6 +56,8 @@ def _one(stem: str, result: str, stats: str) -> int:
 
     def counted_fit(experiments, free, **options):
         t0 = time.thread_time()
+        for key, value in json.loads(engine).items():
+            options.setdefault(key, value)
         row = {"k": len(free), "central": int(options.get("central_differences", idn.POLISH_CENTRAL))}
         try:
             r = plain_fit(experiments, free, **options)
@@ -68,17 +74,18 @@ def _one(stem: str, result: str, stats: str) -> int:
 
     idn.fit = counted_fit
     t0 = time.perf_counter()
-    rc = main(["discover", stem, "--json", result])
+    rc = main(["discover", stem, "--json", result, "--budget", budget])
     wall = time.perf_counter() - t0
     ru = resource.getrusage(resource.RUSAGE_SELF)
     Path(stats).write_text(json.dumps({"rc": rc, "wall": wall, "cpu": ru.ru_utime + ru.ru_stime, "fits": fits}))
     return 0
 
 
-def _profile(name: str, stem: Path, out: Path) -> dict:
+def _profile(name: str, stem: Path, out: Path, budget: float, engine: dict) -> dict:
     """One record discovered in a child process; its row."""
     res, stats = out / f"{name}.profile.discovery.json", out / f"{name}.profile.stats.json"
-    p = subprocess.run([sys.executable, __file__, "--one", str(stem), str(res), str(stats)],
+    p = subprocess.run([sys.executable, __file__, "--one", str(stem), str(res), str(stats), str(budget),
+                        json.dumps(engine)],
                        capture_output=True, text=True)
     if p.returncode != 0 or not stats.is_file():
         return {"name": name, "error": (p.stderr.strip().splitlines() or ["?"])[-1]}
@@ -93,6 +100,13 @@ def _profile(name: str, stem: Path, out: Path) -> dict:
             "iterations": sum(f["iterations"] for f in done),
             "named": doc["added_effects"], "rmse_final": doc["rmse_final"],
             "rmse_over_noise": doc["rmse_final_over_noise"]}
+
+
+def _earlier(path: str | None) -> dict:
+    """The rows of an earlier run's --json file by name ({} if none, or not there yet)."""
+    if not path or not Path(path).is_file():
+        return {}
+    return {r["name"]: r for r in json.loads(Path(path).read_text())}
 
 
 def _print_row(row: dict, earlier: dict | None) -> None:
@@ -116,24 +130,33 @@ def _print_row(row: dict, earlier: dict | None) -> None:
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv and argv[0] == "--one":
-        return _one(*argv[1:4])
+        return _one(*argv[1:6])
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=None, help="directory for the records and results (default: a temporary one)")
-    ap.add_argument("--only", default=None, help="run only the records whose name contains this")
+    ap.add_argument("--only", default=None, help="run only the records whose name is one of these (comma-separated)")
+    ap.add_argument("--budget", type=float, default=BUDGET_S,
+                    help=f"each discovery's time budget [s] (default {BUDGET_S:g}: never reached, so that a "
+                         "loaded machine does not change the results)")
     ap.add_argument("--json", default=None, help="write the rows to this file")
     ap.add_argument("--compare", default=None, help="an earlier --json file to compare the results with")
+    ap.add_argument("--engine", action="append", default=[], metavar="OPTION=VALUE",
+                    help="an engine option (kt_fit_options field, an integer or a number) for every fit that "
+                         "does not set it, e.g. broyden_updates=4; repeatable")
     a = ap.parse_args(argv)
+    engine = {k: json.loads(v) for k, v in (e.split("=", 1) for e in a.engine)}
     from bench_discovery_speed import _yardstick, speed_records
 
     out = Path(a.out or tempfile.mkdtemp(prefix="discovery_profile_"))
-    records = speed_records(out, a.only)
-    earlier = {r["name"]: r for r in json.loads(Path(a.compare).read_text())} if a.compare else {}
+    records = speed_records(out)
+    if a.only:
+        records = [r for r in records if r[0] in a.only.split(",")]
     yard = _yardstick()
     print(f"machine yardstick: one FMU simulation of the demo record {1e3 * yard:.1f} ms; "
           f"load average {os.getloadavg()[0]:.2f} at the start\n", flush=True)
     rows = []
     for name, stem, _hidden in records:
-        rows.append(_profile(name, stem, out))
+        rows.append(_profile(name, stem, out, a.budget, engine))
+        earlier = _earlier(a.compare)   # read as it goes: the earlier run may still be writing it
         _print_row(rows[-1], earlier.get(name))
         if a.json:
             Path(a.json).write_text(json.dumps(rows, indent=1))
@@ -146,6 +169,7 @@ def main(argv=None) -> int:
     print(f"\n{len(ok)} records; yardstick {1e3 * yard:.1f} ms; CPU median {cpu[len(cpu) // 2]:.1f} s, largest "
           f"{cpu[-1]:.1f} s, total {tot:.0f} s; engine fits {100 * eng / tot:.0f} % of it; simulations {sims} "
           f"({100 * jac / max(sims, 1):.0f} % Jacobian columns); load average {os.getloadavg()[0]:.2f} at the end")
+    earlier = _earlier(a.compare)
     if earlier:
         both = [r for r in ok if r["name"] in earlier and "error" not in earlier[r["name"]]]
         same = sum(r["named"] == earlier[r["name"]]["named"] and abs(r["rmse_final"] - earlier[r["name"]]["rmse_final"])
