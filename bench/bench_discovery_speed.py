@@ -68,18 +68,8 @@ def main(argv=None) -> int:
     ap.add_argument("--tether", default=str(Path(sys.executable).with_name("tether")), metavar="TETHER",
                     help="the tether executable to time (default: the one beside this Python)")
     a = ap.parse_args(argv)
-    import hidden_effects as he
-
     out = Path(a.out or tempfile.mkdtemp(prefix="discovery_speed_"))
-    out.mkdir(parents=True, exist_ok=True)
-    records = [("demo_freevib_hidden", REPO / "reference_results" / "discovery" / "freevib_hidden", "nlstiff,slack")]
-    for i, (exp, eff) in enumerate(CASES):
-        name = f"{exp}_{'+'.join(e.split('_')[-1] for e in eff) or 'null'}"
-        tr = he.generate(exp, set(eff), 1000 + i, rate=200.0, duration_s=10.0)
-        tr.write(out, name)
-        records.append((name, out / name, ",".join(sorted(tr.revealed)) or "-"))
-    if a.only:
-        records = [r for r in records if a.only in r[0]]
+    records = speed_records(out, a.only)
     yard = _yardstick()
     print(f"machine yardstick: one FMU simulation of the demo record {1e3 * yard:.1f} ms; "
           f"load average {os.getloadavg()[0]:.2f} at the start\n")
@@ -100,6 +90,21 @@ def main(argv=None) -> int:
         return 1
     print(f"\n{len(times)} runs: {_summary(times, yard)}; load average {os.getloadavg()[0]:.2f} at the end")
     return 0
+
+
+def speed_records(out: Path, only: str | None = None) -> list[tuple[str, Path, str]]:
+    """(name, trace stem, revealed effects) of the bench's records, the generated ones written to
+    ``out``; only: those whose name contains it."""
+    import hidden_effects as he
+
+    out.mkdir(parents=True, exist_ok=True)
+    records = [("demo_freevib_hidden", REPO / "reference_results" / "discovery" / "freevib_hidden", "nlstiff,slack")]
+    for i, (exp, eff) in enumerate(CASES):
+        name = f"{exp}_{'+'.join(e.split('_')[-1] for e in eff) or 'null'}"
+        tr = he.generate(exp, set(eff), 1000 + i, rate=200.0, duration_s=10.0)
+        tr.write(out, name)
+        records.append((name, out / name, ",".join(sorted(tr.revealed)) or "-"))
+    return [r for r in records if not only or only in r[0]]
 
 
 def _discover(tether: str, stem: Path, res: Path):

@@ -388,3 +388,49 @@ def test_a_thread_cpu_deadline_counts_only_the_fit_on_its_thread():
     for msg, spent in out:
         assert "CPU-time deadline passed" in msg, msg
         assert limit <= spent < limit + 2 * one, (spent, limit, one)
+
+
+# ---- Broyden updates between finite-difference Jacobians; the fit's own counts -------------------
+def test_broyden_updates_reach_the_optimum_of_full_jacobians_with_fewer_jacobian_simulations():
+    """kt_fit_options.broyden_updates: the fit of a noisy record ends where the fit with a new
+    finite-difference Jacobian every iteration ends (the same least-squares optimum, to well inside
+    its 95 % intervals, and the truth inside them), with fewer Jacobian simulations."""
+    e = _synthetic(dict(SIMPLE, x0=-0.1669), TRUTH_SIMPLE, 8001, 2e-4, seed=100)
+    free = _free(TRUTH_SIMPLE, {"a1": 1.1, "a2": 0.9, "a3": 0.85, "c0": 1.3, "c1": 0.8})
+    full = idn.fit([e], free, output_stride=20, horizon_stages=3, broyden_updates=0, n_threads=1)
+    upd = idn.fit([e], free, output_stride=20, horizon_stages=3, broyden_updates=4, n_threads=1)
+    assert full.status == 0 and upd.status == 0, (full.message, upd.message)
+    # both stop once a step lowers the cost by less than stat_tol s^2 (1e-2 s^2): the same optimum
+    # to a few such steps
+    assert abs(upd.cost - full.cost) <= 0.1 * full.sigma2, (upd.cost, full.cost, full.sigma2)
+    half = 0.5 * (full.ci_high - full.ci_low)
+    # the stop's place along the valley of the correlated a1, a2, a3 moves (7 % of a half-width here)
+    assert np.all(np.abs(upd.values - full.values) < 0.2 * half), (upd.values, full.values, half)
+    for n, lo, hi in zip(upd.names, upd.ci_low, upd.ci_high):
+        assert lo <= TRUTH_SIMPLE[n] <= hi
+    assert 0 < upd.jacobian_evaluations < full.jacobian_evaluations
+    assert upd.jacobian_evaluations <= upd.evaluations and full.jacobian_evaluations <= full.evaluations
+    assert upd.cpu_seconds > 0 and full.cpu_seconds > 0
+
+
+def test_the_statistics_use_the_finite_difference_jacobian_at_the_optimum():
+    """The intervals come from the central-difference Jacobian at the fitted values (the polish's
+    last one, when it was computed there): its singular values equal those of the same Jacobian
+    built here from simulations, column by column, in the engine's scaled coordinates (log)."""
+    truth = {"EA": 3000.0, "c0": 0.8}
+    t = np.arange(2001) * 1e-3
+    settings = {"rig": 2, "stiffness": 1, "damping": 1, "hysteresis": 1, "slack": 0, "m": 2.0, "g": 0.0,
+                "x0": 0.01, "L0": 10.0, "rtol": 1e-10}
+    e = idn.Experiment(t, settings=settings)
+    e.measured = idn.simulate(e, truth) + 1e-5 * np.random.default_rng(3).standard_normal(t.size)
+    r = idn.fit([e], {"EA": (100.0, 1e5, 2700.0), "c0": (1e-3, 100.0, 2.0)}, n_threads=1)
+    assert r.status == 0, r.message
+    h = 1e-3   # kt_fit_options.fd_step, in theta = log p
+    p = r.as_dict()
+    cols = []
+    for n in r.names:
+        up, down = dict(p), dict(p)
+        up[n], down[n] = p[n] * np.exp(h), p[n] * np.exp(-h)
+        cols.append((idn.simulate(e, up) - idn.simulate(e, down)) / (2 * h))
+    sv = np.linalg.svd(np.column_stack(cols), compute_uv=False)
+    assert np.allclose(r.singular_values, sv, rtol=1e-9), (r.singular_values, sv)

@@ -38,6 +38,14 @@ double t_quantile_975(int dof)
            (79 * z9 + 776 * z7 + 1482 * z5 - 1920 * z3 - 945 * z) / (92160 * n * n * n * n);
 }
 
+// CPU time of the calling thread so far, in nanoseconds
+long long thread_cpu_ns()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (long long)ts.tv_sec * 1000000000LL + ts.tv_nsec;
+}
+
 struct Problem {
     std::vector<kt::Prepared> exps;
     std::vector<int> par;      // parameter table indices of the free parameters
@@ -78,6 +86,9 @@ struct Problem {
         return true;
     }
 
+    // CPU seconds of the threads batch() started (the calling thread's own are read by kt_fit)
+    std::atomic<long long> *helper_cpu_ns = nullptr;
+
     // evaluate residuals at several points in parallel
     void batch(const std::vector<VectorXd> &pts, std::vector<VectorXd> &rs, std::vector<char> &ok) const
     {
@@ -92,8 +103,12 @@ struct Problem {
         };
         const std::size_t nt = std::min<std::size_t>((std::size_t)std::max(1, n_threads), m);
         if (nt <= 1) { work(0, 1); return; }
+        auto helper = [&](std::size_t first, std::size_t stride) {
+            work(first, stride);
+            if (helper_cpu_ns) *helper_cpu_ns += thread_cpu_ns();
+        };
         std::vector<std::thread> th;
-        for (std::size_t i = 1; i < nt; ++i) th.emplace_back(work, i, nt);
+        for (std::size_t i = 1; i < nt; ++i) th.emplace_back(helper, i, nt);
         work(0, nt);
         for (auto &x : th) x.join();
     }
@@ -101,6 +116,7 @@ struct Problem {
 
 struct Counters {
     long evaluations = 0;
+    long jacobian_evaluations = 0; // of evaluations: the finite-difference Jacobians' columns
     int iterations = 0;
     std::vector<double> history;
 };
@@ -115,6 +131,7 @@ bool one_sided_column(const Problem &P, const VectorXd &th, const VectorXd &r, i
     if (a[j] > P.hi[j] || a[j] < P.lo[j]) return false;
     std::string err;
     ++C.evaluations;
+    ++C.jacobian_evaluations;
     if (!P.residuals(a, ra, err)) return false;
     J.col(j) = (ra - r) / step;
     return true;
@@ -147,6 +164,7 @@ bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h,
     std::vector<char> ok;
     P.batch(pts, rs, ok);
     C.evaluations += (long)pts.size();
+    C.jacobian_evaluations += (long)pts.size();
     J.resize(r.size(), k);
     std::size_t at = 0;
     for (int j = 0; j < k; ++j) {
@@ -180,7 +198,25 @@ struct LMResult {
     double cost = std::numeric_limits<double>::infinity();
     int status = -1;
     std::string message;
+    // the finite-difference Jacobian at th, when the fit's last one was computed there (central or
+    // forward as `central` says); empty otherwise. The statistics reuse it: the same bits as a new one
+    MatrixXd J;
+    bool central = false;
 };
+
+// J + (dr - J s) s^T / (s^T s): Broyden's rank-one update of the Jacobian after the step s, which
+// changed the residuals by dr (the secant condition J s = dr holds afterwards; directions
+// orthogonal to s keep their columns' action)
+void broyden_update(MatrixXd &J, const VectorXd &s, const VectorXd &dr)
+{
+    const double ss = s.squaredNorm();
+    if (!(ss > 0)) return;
+    J += ((dr - J * s) / ss) * s.transpose();
+}
+
+// How many rank-one updates a Levenberg-Marquardt run may chain between finite-difference
+// Jacobians: none with central differences (they polish the optimum), else the option's count.
+int broyden_limit(const kt_fit_options &o) { return o.central_differences == 1 ? 0 : std::max(0, o.broyden_updates); }
 
 LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit_options &o, Counters &C, int start_no,
                              int stage = 0, int n_stages = 1)
@@ -208,14 +244,25 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
     R.message = "maximum number of iterations reached";
     MatrixXd J;
     bool need_jacobian = true;
+    // rank-one updates (broyden_update) since the last finite-difference Jacobian; a J that is one
+    // never ends the fit: where it would (gradient small, step small, a small decrease, no
+    // decrease), the finite-difference Jacobian is computed there and the iteration redone
+    int updates = 0;
+    const int max_updates = broyden_limit(o);
+    bool j_at_th = false; // J is a finite-difference Jacobian at th
     for (int it = 0; it < o.max_iterations; ++it) {
         ++C.iterations;
-        if (need_jacobian && !jacobian(P, th, r, o.fd_step, o.central_differences != 0, J, C)) {
-            if (!stopped_by_deadline()) {
-                R.status = -1;
-                R.message = "a Jacobian column failed to simulate";
+        if (need_jacobian) {
+            j_at_th = false;
+            if (!jacobian(P, th, r, o.fd_step, o.central_differences != 0, J, C)) {
+                if (!stopped_by_deadline()) {
+                    R.status = -1;
+                    R.message = "a Jacobian column failed to simulate";
+                }
+                break;
             }
-            break;
+            updates = 0;
+            j_at_th = true;
         }
         need_jacobian = false;
         const MatrixXd A = J.transpose() * J;
@@ -226,9 +273,20 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
             const bool at_lo = th[j] <= P.lo[j] && g[j] > 0, at_hi = th[j] >= P.hi[j] && g[j] < 0;
             if (!at_lo && !at_hi) gmax = std::max(gmax, std::fabs(g[j]));
         }
-        if (gmax <= o.gtol * std::max(cost, 1e-300)) { R.status = 0; R.message = "gradient small"; break; }
+        // an iteration redone with a better J (not counted as one)
+        auto redo_iteration = [&]() {
+            --it;
+            --C.iterations;
+        };
+        if (gmax <= o.gtol * std::max(cost, 1e-300)) {
+            if (updates > 0) { need_jacobian = true; redo_iteration(); continue; }
+            R.status = 0;
+            R.message = "gradient small";
+            break;
+        }
         VectorXd dscale = A.diagonal().cwiseMax(1e-12 * std::max(1e-300, A.diagonal().maxCoeff()));
-        bool accepted = false, converged = false;
+        bool accepted = false, converged = false, redo = false;
+        VectorXd th_before = th, r_before = r;
         // (the loop can try several lambdas side by side, n_cand > 1; measured: it did not save
         // iterations on the full-model benchmark, so one candidate per try)
         for (int tries = 0; tries < 30; ++tries) {
@@ -247,6 +305,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
                 preds.push_back(-(g.dot(step) + 0.5 * step.dot(A * step)));
                 cand.push_back(tn);
             }
+            if (small && updates > 0) { need_jacobian = true; redo = true; break; }
             if (small) { converged = true; R.message = "step small"; break; }
             P.batch(cand, rs, oks);
             C.evaluations += (long)cand.size();
@@ -266,6 +325,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
                 cost = cn;
                 lambda = lams[best];
                 C.history.push_back(cost);
+                j_at_th = false;
                 // shrink lambda fast on good steps: the weak directions of an ill-conditioned
                 // problem move only once lambda * diag(J^T J) is below their curvature
                 if (rho > 0.5) lambda /= 10.0;
@@ -280,6 +340,22 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
                     converged = true;
                     R.message = "cost decrease far below the residual variance";
                 }
+                // a small decrease along an updated J's step: go on with a finite-difference one
+                if (converged && updates > 0) { converged = false; need_jacobian = true; }
+                break;
+            }
+            // no decrease along an updated J's step: the trial's secant updates it once more (and
+            // lambda grows), or, at the limit of updates, a finite-difference J (the same lambda)
+            if (updates > 0) {
+                if (updates < max_updates && oks[0]) {
+                    broyden_update(J, cand[0] - th, rs[0] - r);
+                    ++updates;
+                    lambda *= nu;
+                    nu *= 2.0;
+                } else {
+                    need_jacobian = true;
+                }
+                redo = true;
                 break;
             }
             lambda *= nu;
@@ -287,6 +363,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
             if (lambda > 1e16) { converged = true; R.message = "no decrease found (lambda at its limit)"; break; }
         }
         if (stopped_by_deadline()) break;
+        if (redo) { redo_iteration(); continue; }
         if (o.verbose)
             std::fprintf(stderr, "[kt_fit] start %d it %d cost %.6e lambda %.2e evals %ld\n", start_no, it, cost, lambda,
                          C.evaluations);
@@ -297,11 +374,20 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
         }
         if (converged) { R.status = 0; break; }
         if (!accepted) { R.status = 0; R.message = "no decrease found"; break; }
-        need_jacobian = true;
+        if (!need_jacobian && updates < max_updates) {
+            broyden_update(J, th - th_before, r - r_before);
+            ++updates;
+        } else {
+            need_jacobian = true;
+        }
     }
     R.th = th;
     R.r = r;
     R.cost = cost;
+    if (j_at_th && updates == 0) {
+        R.J = J;
+        R.central = o.central_differences != 0;
+    }
     return R;
 }
 
@@ -398,6 +484,7 @@ void kt_fit_default_options(kt_fit_options *o)
     o->progress = nullptr;
     o->progress_ctx = nullptr;
     o->continuous_input = 1;
+    o->broyden_updates = 0;
 }
 
 int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const *names, const double *lower,
@@ -405,6 +492,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
            kt_fit_result *res)
 {
     const auto t0 = std::chrono::steady_clock::now();
+    const long long cpu0 = thread_cpu_ns();
     std::string &err = kt::last_error;
     err.clear();
     try {
@@ -419,6 +507,8 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
 
         Problem P;
         P.n_threads = o.n_threads;
+        std::atomic<long long> helper_cpu_ns{0};
+        P.helper_cpu_ns = &helper_cpu_ns;
         kt::Limits limits;
         limits.monotonic = o.deadline_monotonic > 0 ? o.deadline_monotonic : 0.0;
         limits.cpu = o.deadline_cpu > 0 ? o.deadline_cpu : 0.0;
@@ -540,7 +630,9 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
 
         // statistics at the optimum: a fresh Jacobian there
         MatrixXd J;
-        if (!jacobian(P, best.th, best.r, o.fd_step, o.central_differences != 0, J, C)) {
+        const bool central = o.central_differences != 0;
+        if (best.J.rows() == P.n_res && best.J.cols() == k && best.central == central) J = best.J;
+        else if (!jacobian(P, best.th, best.r, o.fd_step, central, J, C)) {
             err = P.out_of_time() ? "kt_fit: " + P.limits->message() : "kt_fit: the Jacobian at the optimum failed to simulate";
             return -1;
         }
@@ -565,6 +657,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         res->n_residuals = N;
         res->dof = dof;
         res->evaluations = (int)C.evaluations;
+        res->jacobian_evaluations = (int)C.jacobian_evaluations;
         res->iterations = C.iterations;
         res->best_start = best_start;
         res->status = best.status;
@@ -616,6 +709,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         }
         std::snprintf(res->report, sizeof res->report, "%s", report.c_str());
         res->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        res->cpu_seconds = 1e-9 * (double)(thread_cpu_ns() - cpu0 + helper_cpu_ns.load());
         return best.status;
     } catch (const std::exception &ex) {
         err = std::string("kt_fit: ") + ex.what();

@@ -27,7 +27,7 @@ extern "C" {
 #define KT_API
 #endif
 
-#define KT_IDENTIFY_API_VERSION 6
+#define KT_IDENTIFY_API_VERSION 8
 
 /* ---- parameter table ------------------------------------------------------------------------ */
 #define KT_PAR_REAL 0   /* a Real parameter: a double field of tether_params */
@@ -166,6 +166,14 @@ typedef struct {
                                 memory takes the switches the FMU makes at every sample). 0 =
                                 restart the integrator at every sample, as the FMU does when an
                                 importer sets the input (kt_simulate's exact step sequence) */
+    int broyden_updates;     /* speed-up of the forward-difference iterations (not of central ones,
+                                which polish the optimum): after an accepted step, update the
+                                Jacobian by Broyden's rank-one secant formula instead of computing
+                                it anew by finite differences (one simulation per parameter), at
+                                most this many times in a row. An updated Jacobian never ends a
+                                fit: where it would (gradient or step small, a small decrease, no
+                                decrease), the finite-difference one is computed there and the
+                                iteration redone. 0 = a finite-difference Jacobian every iteration */
 } kt_fit_options;
 
 KT_API void kt_fit_default_options(kt_fit_options *o);
@@ -192,10 +200,12 @@ typedef struct {
     double condition;          /* sigma_max / sigma_min */
     int n_residuals, dof;
     int evaluations;           /* simulations of the whole data set (each = one per experiment) */
+    int jacobian_evaluations;  /* of evaluations: those of finite-difference Jacobian columns */
     int iterations;            /* LM iterations, all starts */
     int best_start;            /* which start gave the optimum (0 = the given start) */
     int status;                /* 0 converged, 1 max iterations, < 0 failure */
     double seconds;            /* wall-clock time of the fit */
+    double cpu_seconds;        /* CPU time of the fit: the calling thread's and its helper threads' */
     char message[256];         /* why it stopped */
     char report[4096];         /* the undetermined directions, named, one per line */
 } kt_fit_result;

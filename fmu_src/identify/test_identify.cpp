@@ -154,6 +154,45 @@ int main()
         CHECK(qrc != 0 || (std::fabs(qv[0] / 3000.0 - 1) < 1e-4 && std::fabs(qv[1] / 0.8 - 1) < 1e-3),
               "fit with a refused Jacobian point: EA %g c0 %g", qv[0], qv[1]);
     }
+    // Broyden's rank-one updates between finite-difference Jacobians (kt_fit_options.broyden_updates)
+    // reach the optimum the data were made at, as the fit with a new Jacobian every iteration does,
+    // with fewer Jacobian simulations: forward differences throughout, and polished by central ones
+    {
+        const char *bn[] = {"EA", "c0", "offset_measured"};
+        const double bt[] = {3000.0, 0.8, 0.0037};
+        std::vector<double> y(n);
+        CHECK(kt_simulate(&e, 3, bn, bt, y.data()) == 0, "simulate: %s", kt_last_error());
+        e.measured = y.data();
+        const double blo[] = {100.0, 1e-3, -1.0}, bhi[] = {1e5, 100.0, 1.0}, bst[] = {2400.0, 3.0, 0.0};
+        for (int central : {0, 2}) {
+            FitBuffers full(3), upd(3);
+            kt_fit_options of = o;
+            of.central_differences = central;
+            of.broyden_updates = 0;
+            kt_fit_options ob = of;
+            ob.broyden_updates = 4;
+            const int rf = kt_fit(&e, 1, 3, bn, blo, bhi, bst, nullptr, &of, &full.r);
+            const int rb = kt_fit(&e, 1, 3, bn, blo, bhi, bst, nullptr, &ob, &upd.r);
+            CHECK(rf == 0 && rb == 0, "Broyden (central %d): rc %d / %d: %s", central, rf, rb, kt_last_error());
+            const double tol = central ? 1e-6 : 1e-4;
+            for (int j = 0; j < 3; ++j) {
+                const double scale = j == 2 ? 1.0 : bt[j];
+                CHECK(std::fabs(full.values[j] - bt[j]) < tol * scale && std::fabs(upd.values[j] - bt[j]) < tol * scale,
+                      "Broyden (central %d): %s %.9g (full Jacobians %.9g), truth %g", central, bn[j], upd.values[j],
+                      full.values[j], bt[j]);
+            }
+            CHECK(upd.r.jacobian_evaluations < full.r.jacobian_evaluations,
+                  "Broyden (central %d): %d Jacobian simulations, full Jacobians %d", central,
+                  upd.r.jacobian_evaluations, full.r.jacobian_evaluations);
+            CHECK(upd.r.jacobian_evaluations <= upd.r.evaluations && upd.r.cpu_seconds > 0,
+                  "Broyden (central %d): %d Jacobian of %d simulations, %g s of CPU", central,
+                  upd.r.jacobian_evaluations, upd.r.evaluations, upd.r.cpu_seconds);
+            std::printf("Broyden (central %d): %d simulations (%d Jacobian) against %d (%d), %s\n", central,
+                        upd.r.evaluations, upd.r.jacobian_evaluations, full.r.evaluations, full.r.jacobian_evaluations,
+                        upd.r.message);
+        }
+        e.measured = meas.data();
+    }
     if (failures) std::printf("%d failure(s)\n", failures);
     else std::printf("all passed\n");
     return failures ? 1 : 0;

@@ -27,7 +27,7 @@ __all__ = ["Experiment", "FitResult", "MEASUREMENT_DEFAULTS", "PROGRESS", "exper
 
 INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
 #: the engine's KT_IDENTIFY_API_VERSION this binding is written for
-API_VERSION = 6
+API_VERSION = 8
 #: parameter kinds of the engine's table (identify.h KT_PAR_*)
 KIND_REAL, KIND_SWITCH, KIND_INPUT, KIND_MEASUREMENT = 0, 1, 2, 3
 #: the measurement parameters of an experiment (identify.h KT_PAR_MEASUREMENT) and their defaults:
@@ -63,7 +63,7 @@ class _Options(C.Structure):
         ("output_stride", C.c_int), ("horizon_stages", C.c_int), ("verbose", C.c_int),
         ("progress", C.c_void_p), ("progress_ctx", C.c_void_p),
         ("deadline_monotonic", C.c_double), ("deadline_cpu", C.c_double), ("deadline_thread_cpu", C.c_double),
-        ("continuous_input", C.c_int),
+        ("continuous_input", C.c_int), ("broyden_updates", C.c_int),
     ]
 
 
@@ -78,8 +78,9 @@ class _Result(C.Structure):
         ("direction_flags", _IP), ("unidentifiable", _IP),
         ("cost_history", _DP), ("cost_history_capacity", C.c_int), ("cost_history_length", C.c_int),
         ("cost", C.c_double), ("rms", C.c_double), ("sigma2", C.c_double), ("condition", C.c_double),
-        ("n_residuals", C.c_int), ("dof", C.c_int), ("evaluations", C.c_int), ("iterations", C.c_int),
-        ("best_start", C.c_int), ("status", C.c_int), ("seconds", C.c_double),
+        ("n_residuals", C.c_int), ("dof", C.c_int), ("evaluations", C.c_int),
+        ("jacobian_evaluations", C.c_int), ("iterations", C.c_int),
+        ("best_start", C.c_int), ("status", C.c_int), ("seconds", C.c_double), ("cpu_seconds", C.c_double),
         ("message", C.c_char * 256), ("report", C.c_char * 4096),
     ]
 
@@ -321,6 +322,10 @@ class FitResult:
     status: int
     message: str
     seconds: float
+    #: of ``evaluations``, the simulations of finite-difference Jacobian columns
+    jacobian_evaluations: int = 0
+    #: CPU seconds of the fit (the calling thread's and the engine's helper threads')
+    cpu_seconds: float = 0.0
 
     def as_dict(self) -> dict[str, float]:
         return dict(zip(self.names, map(float, self.values)))
@@ -358,7 +363,8 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
 
     options: any field of kt_fit_options (max_iterations, ftol, xtol, gtol, fd_step,
     central_differences, n_starts, start_spread, seed, n_threads, rtol, singular_rel_tol,
-    max_rel_std, stat_tol, output_stride, horizon_stages, continuous_input, verbose, deadline_monotonic,
+    max_rel_std, stat_tol, output_stride, horizon_stages, continuous_input, broyden_updates, verbose,
+    deadline_monotonic,
     deadline_cpu and deadline_thread_cpu (readings of time.CLOCK_MONOTONIC,
     time.CLOCK_PROCESS_CPUTIME_ID and the calling thread's time.CLOCK_THREAD_CPUTIME_ID, see
     :func:`deadlines`; the fit raises DeadlinePassed, a RuntimeError "kt_fit: stopped: the ...
@@ -426,4 +432,4 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
         cost_history=hist[:r.cost_history_length].copy(), cost=r.cost, rms=r.rms, sigma2=r.sigma2,
         condition=r.condition, n_residuals=r.n_residuals, dof=r.dof, evaluations=r.evaluations,
         iterations=r.iterations, best_start=r.best_start, status=r.status, message=r.message.decode(),
-        seconds=r.seconds)
+        seconds=r.seconds, jacobian_evaluations=r.jacobian_evaluations, cpu_seconds=r.cpu_seconds)
