@@ -643,14 +643,15 @@ class Campaign(Contradictions):
                 self.rivals.setdefault(e, {})[_law_of(new, e)] = dict(f.params)
             c = self.judge(e, f)
             self.say(f"  + {e} ({new.canonical}): campaign RMS error {f.rms:.2f} x noise ({self.per_record(f)}), "
-                     f"BIC {c.bic_change:+.0f}" + (" passes" if c.accepted else f": {c.verdict}")
-                     + f" ({f.seconds:.1f} s)")
-            if e not in by_effect or (c.accepted, -c.bic_change) > (by_effect[e].accepted, -by_effect[e].bic_change):
+                     f"BIC {c.bic_change:+.0f}, by record {c.records_bic_change:+.0f}"
+                     + (" passes" if c.accepted else f": {c.verdict}") + f" ({f.seconds:.1f} s)")
+            if e not in by_effect or ((c.accepted, -c.records_bic_change)
+                                      > (by_effect[e].accepted, -by_effect[e].records_bic_change)):
                 by_effect[e] = c
         if self.budget_hit:
             self.stop = f"the time budget of {self.budget:.0f} s was spent during step {len(self.steps) + 1}"
             return False
-        results = sorted(by_effect.values(), key=lambda c: c.bic_change)
+        results = sorted(by_effect.values(), key=lambda c: c.records_bic_change)
         passing = [c for c in results if c.accepted]
         win = self.heldout_tests(passing)
         step = CampaignStep(effect=None, model_before=cur.model, model_after=None, rms_before=cur.rms, rms_after=None,
@@ -747,7 +748,8 @@ class Campaign(Contradictions):
         no parameter, only where it acts in some record (judge._slack_acts)."""
         cur = self.cur
         dk = f.n_free - cur.n_free
-        c = CampaignCandidate(effect=effect, fit=f, added_parameters=dk, bic_change=bic_change(cur, f, self.n))
+        c = CampaignCandidate(effect=effect, fit=f, added_parameters=dk, bic_change=bic_change(cur, f, self.n),
+                              records_bic_change=self.records_bic_change(cur, f, dk))
         if not f.ok:
             c.verdict = f"the fit failed: {f.message}"
             return c
@@ -760,6 +762,21 @@ class Campaign(Contradictions):
             if not acts:
                 c.accepted, c.verdict = False, "slack never acts in the fitted model on any record"
         return c
+
+    def records_bic_change(self, before: CampaignFit, after: CampaignFit, added: int) -> float:
+        """The BIC change that ranks the candidates that pass: each record's error read against its
+        own (the sum over records of n ln(rms_after^2 / rms_before^2), the likelihood where each
+        record's error variance is its own, estimated, not its noise: Box and Draper's rule for
+        responses of unknown error levels), the ``added`` parameters counted once over all samples.
+        The campaign's error in noise units, which judges, weighs a record by its noise alone: where
+        one record is missed far above its noise (a quiet free vibration the shared hysteresis law
+        cannot follow), its misfit outweighs the rest and a step names whatever takes the most of it
+        (campaign 1000, measured 2026-11-27: a damping, which acts on the free vibration alone,
+        ahead of creep, which brought the creep test's joint fit down)."""
+        if not after.ok:
+            return float("inf")
+        return (sum(r.n * math.log((a / b) ** 2) for r, b, a in zip(self.records, before.rms_records, after.rms_records))
+                + added * math.log(self.n))
 
     def add(self, step: CampaignStep, win: CampaignCandidate) -> None:
         """The winner's effect added; who revealed it (of the records that can reveal it, laws.unrevealed,
