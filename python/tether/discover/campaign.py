@@ -11,7 +11,10 @@ _baked), and are fitted in turn by one short fit per record with the shared law 
 effect the records can reveal (the union of laws.candidates) is fitted to all records jointly,
 each weighted by its own noise (tether.fit.fit_traces), and judged by the one judge
 (judge.full_data_verdict, judge.heldout_verdict) on the campaign's error in noise units (every
-residual divided by its record's noise), the held-out test on each record's held-out part. Per
+residual divided by its record's noise), the held-out test on each record's held-out part; those
+that pass are ranked by each record's error against its own (Campaign.records_bic_change), and an
+effect whose own law does not reveal it on its lead record is fitted with its wider law in the same
+step (Campaign.wider_candidates). Per
 step every record's error before and after says which record revealed the effect (the one-record
 rule on that record's samples). Each named effect is re-tested once a later one is in
 (Campaign.retest_named); where a record is still missed at the end, the named effects' wider laws
@@ -631,6 +634,7 @@ class Campaign(Contradictions):
             return False
         self.say(f"step {len(self.steps) + 1}: {len(cands)} candidates on {len(self.records)} records")
         factor = 1.0 if cur is self.fits[0] else self.cap_factor_for(cur)
+
         def fitted(c, own):
             return self.candidate_fit(c[0], c[1], cur.effects + (c[0],), c[2], c[3], own, factor)
 
