@@ -595,10 +595,8 @@ class Campaign(Contradictions):
         (a gap of CRITERIA.unexplained_gap or more): fitted in the same step as a law of the same
         effect, where the lead's rig tries it. The wider law is otherwise tried only at the end and
         only for a named effect (wider_laws): an effect whose own law cannot reproduce the record
-        that reveals it earned its place, if at all, on the records that cannot (campaign 1000's
-        Kelvin creep, measured 2026-11-27, took the free vibration from 27.7 to 10.1 x its noise and
-        left the creep test at 14.1 x; a damping, which acts on the free vibration alone, was named
-        before it)."""
+        that reveals it earns its place, if at all, on the records that cannot, and may never be
+        named to be widened (docs/campaign-discovery.md, fourth round)."""
         out = []
         for (e, new, i, _), f in zip(cands, fits):
             law, wider = WIDER_LAWS.get(e, (None, None))
@@ -774,9 +772,8 @@ class Campaign(Contradictions):
         responses of unknown error levels), the ``added`` parameters counted once over all samples.
         The campaign's error in noise units, which judges, weighs a record by its noise alone: where
         one record is missed far above its noise (a quiet free vibration the shared hysteresis law
-        cannot follow), its misfit outweighs the rest and a step names whatever takes the most of it
-        (campaign 1000, measured 2026-11-27: a damping, which acts on the free vibration alone,
-        ahead of creep, which brought the creep test's joint fit down)."""
+        cannot follow), its misfit outweighs the rest and a step would name whatever takes the most
+        of it."""
         if not after.ok:
             return float("inf")
         return (sum(r.n * math.log((a / b) ** 2) for r, b, a in zip(self.records, before.rms_records, after.rms_records))
