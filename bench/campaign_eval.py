@@ -25,6 +25,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "python"))
 sys.path.insert(0, str(REPO / "python_tests"))
+sys.path.insert(0, str(REPO / "bench"))
 
 #: the shared law's parameters compared between the one-at-a-time discoveries
 SHARED = ("EA", "a1", "a2", "a3", "bw_A", "creep_J1", "slip_capacity0")
@@ -34,7 +35,7 @@ LARGE = {"free_vibration": {"rate": 200.0}, "load_unload": {"rate": 20.0},
          "creep": {"rate": 0.2, "creep_program": [[100.0, 3.0], [5.0, 2.5]]}}
 
 
-def one_campaign(seed: int, budget: float, alone: bool, large: bool = False) -> dict:
+def one_campaign(seed: int, budget: float, alone: bool, large: bool = False, progress: bool = False) -> dict:
     import campaign_records as cr
     from tether import discover as D
     from tether.discover.campaign import discover_campaign
@@ -45,7 +46,9 @@ def one_campaign(seed: int, budget: float, alone: bool, large: bool = False) -> 
         stems = cr.write_campaign(recs, Path(tmp), prefix=f"c{seed}_")
         traces = [read_trace(s) for s in stems]
         t0, c0 = time.perf_counter(), time.process_time()
-        d = discover_campaign(traces, budget=budget)
+        say = (lambda m: print(f"  [{seed} {time.process_time() - c0:7.1f} s CPU] {m}", flush=True)
+               ) if progress else None
+        d = discover_campaign(traces, budget=budget, progress=say)
         seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
         out = {"seed": seed, "tether_effects": sorted(effects), "hidden_union": sorted(cr.hidden_union(recs)),
                "named": sorted(d.added_effects), "seconds": seconds, "cpu": cpu, "samples": [len(t.time) for t in traces],
@@ -100,20 +103,25 @@ def main(argv=None) -> int:
                     help="wall-time budget of each discovery [s] (default: none; the figures are CPU-bound)")
     ap.add_argument("--no-alone", action="store_true", help="skip the one-at-a-time discoveries")
     ap.add_argument("--large", action="store_true", help="one campaign of records of up to 4,000 samples, timed")
+    ap.add_argument("--progress", action="store_true",
+                    help="print the discovery's progress with the CPU seconds spent (where the time goes; on with --large)")
     args = ap.parse_args(argv)
     seeds = [1000 * args.seed + i for i in range(1 if args.large else args.n)]
     print(f"campaign_eval: {len(seeds)} campaigns, seed {args.seed}, jobs {args.jobs}, load average "
           f"{os.getloadavg()[0]:.2f} at start")
+    if args.large:
+        yardstick()
     results = []
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
-            futs = [pool.submit(one_campaign, s, args.budget, not args.no_alone, args.large) for s in seeds]
+            shown = args.progress or args.large
+            futs = [pool.submit(one_campaign, s, args.budget, not args.no_alone, args.large, shown) for s in seeds]
             for f in futs:
                 results.append(f.result())
                 show(results[-1])
     else:
         for s in seeds:
-            results.append(one_campaign(s, args.budget, not args.no_alone, args.large))
+            results.append(one_campaign(s, args.budget, not args.no_alone, args.large, args.progress or args.large))
             show(results[-1])
     right = sum(set(r["named"]) == set(r["hidden_union"]) for r in results)
     within = sum(all(x["rmse_over_noise"] <= 1.5 for x in r["records"]) for r in results)
@@ -121,7 +129,21 @@ def main(argv=None) -> int:
           f"{within} of {len(results)}; seconds per campaign: "
           + ", ".join(f"{r['seconds']:.0f} ({r['cpu']:.0f} CPU)" for r in results)
           + f"; load average {os.getloadavg()[0]:.2f} at the end")
+    if args.large:
+        yardstick()
     return 0
+
+
+def yardstick() -> None:
+    """bench/bench_discovery_speed.py's machine yardstick (one FMU simulation of the demo record, best
+    of 5), in wall and CPU seconds: the campaign's time read as a ratio on a loaded machine."""
+    from bench_discovery_speed import _yardstick
+
+    c0 = time.process_time()
+    wall = _yardstick()
+    print(f"machine yardstick (bench/bench_discovery_speed.py): one FMU simulation of the demo record "
+          f"{1e3 * wall:.1f} ms best of 5 wall, {1e3 * (time.process_time() - c0) / 5:.1f} ms CPU on average; "
+          f"load average {os.getloadavg()[0]:.2f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -391,3 +391,87 @@ def test_load_tests_beyond_their_share_are_thinned_keeping_every_load_step(tmp_p
         assert len(th.time) <= 1.1 * len(tr.time) / k + 1
         steps = np.flatnonzero(np.abs(np.diff(tr.input, 2)) > 1e-6 * np.max(np.abs(tr.input))) + 1
         assert len(steps) >= 3 and set(tr.time[steps]) <= set(th.time)   # every corner of the load kept
+
+
+def test_an_effect_whose_law_misses_the_record_that_reveals_it_is_fitted_with_its_wider_law(tmp_path):
+    """A step fits an effect's wider law (laws.WIDER_LAWS: primary creep for the Kelvin cells and
+    slip) beside its own where its own law does not reveal it on its lead record and leaves that
+    record unexplained (Campaign.wider_candidates). A tether with the generator's log-kernel creep,
+    a load-unload test and a creep test: the Kelvin law fitted reveals it (no wider law is fitted);
+    a Kelvin law that cannot follow the creep test (here its compliances held at nothing, as the
+    Kelvin cells beside an Iwan bank left campaign 1000's creep test at 14 x its noise) brings the
+    primary law into the step, which wins it and brings the creep test within 1.5 x its noise. Before,
+    the wider law was tried only at the end and only for a named effect: the step named nothing."""
+    from tether.discover.campaign import Campaign
+
+    recs, _, material = cr.campaign(1000, effects={"creep"}, experiments=("load_unload", "creep"), sizes=cr.TINY)
+    assert material["creep_kernel"] == "log"
+    traces = [read_trace(s) for s in cr.write_campaign(recs, tmp_path)]
+    lines = []
+    camp = Campaign(traces, "linear", lines.append, 5, 2, None, None, False)
+    camp.fit_start()
+    kelvin = [c for c in camp.candidate_models() if c[0] == "creep"]
+    (effect, spec, lead, starts), = kelvin
+    assert spec.creep_law == "kelvin_slip" and traces[lead].experiment == "creep"
+    effects = camp.cur.effects + ("creep",)
+    fitted = camp.candidate_fit(effect, spec, effects, lead, starts)
+    assert fitted.rms_records[lead] < 1.5 * camp.records[lead].sigma, fitted.rms_records
+    assert camp.wider_candidates(kelvin, [fitted]) == []
+    weak_creep = {"creep_J1": 1e-12, "creep_J2": 1e-12, "creep_J3": 1e-12, "slip_capacity0": 1e-12}
+    missing = camp.evaluate(spec, effects, {**camp.cur.params, **weak_creep}, camp.law_names(spec), camp.cur.nz)
+    assert missing.rms_records[lead] > 3 * camp.records[lead].sigma, missing.rms_records
+    wider = camp.wider_candidates(kelvin, [missing])
+    assert [(e, m.creep_law, i) for e, m, i, _ in wider] == [("creep", "primary", lead)]
+
+    own_fit = camp.candidate_fit
+    camp.candidate_models = lambda: kelvin
+    camp.candidate_fit = lambda e, m, *a, **k: missing if m.creep_law == "kelvin_slip" else own_fit(e, m, *a, **k)
+    assert camp.step()
+    assert camp.steps[-1].effect == "creep" and camp.cur.spec.creep_law == "primary", camp.steps[-1].candidates
+    assert all(e <= 1.5 * r.sigma for e, r in zip(camp.cur.rms_records, camp.records)), camp.per_record(camp.cur)
+    assert any("the wider law primary is fitted too" in ln for ln in lines), lines
+
+
+def test_a_step_ranks_its_candidates_by_each_record_against_its_own_error(tmp_path):
+    """Two candidates pass the judge on the campaign's error in noise units. One takes part of a
+    quiet record's misfit alone (a damping on a free vibration missed at 27.7 x its noise by the
+    shared law); the other lowers every record a little more in proportion (the creep that campaign
+    1000's step took: free vibration 27.68 -> 10.15, load test 1.80 -> 1.22, creep test 14.33 ->
+    14.14 x noise, measured 2026-11-27). In noise units the first is ahead (the free vibration,
+    with a tenth of the others' noise, outweighs them); read per record against its own error
+    (Campaign.records_bic_change, each record's variance its own) the second is, and the step names
+    it. Before, the step ranked by the campaign's error in noise units and named the first."""
+    from tether.discover.campaign import Campaign, CampaignFit
+
+    recs, _, _ = cr.campaign(1000, effects=set(), sizes=cr.TINY)
+    traces = [read_trace(s) for s in cr.write_campaign(recs, tmp_path)]
+    camp = Campaign(traces, "linear", None, 5, 2, None, None, False)
+    n = [r.n for r in camp.records]
+    assert [t.experiment for t in traces] == ["free_vibration", "load_unload", "creep"] and n == [301, 294, 631], n
+
+    def fit(model, over_noise, free):
+        return CampaignFit(spec=parse_model(model), effects=tuple(parse_model(model).effects), params={}, free=free,
+                           rms=math.sqrt(sum(k * z * z for k, z in zip(n, over_noise)) / sum(n)),
+                           rms_records=[z * r.sigma for z, r in zip(over_noise, camp.records)], predicted=[],
+                           nz=[{}] * 3)
+
+    camp.cur = fit("linear", (27.68, 1.80, 14.33), ["EA", "c0"])
+    camp.fits, camp.cur_held = [camp.cur], 20.0
+    damping = fit("linear+nonlinear_damping", (9.0, 1.80, 14.33), ["EA", "c0", "c1", "c2"])
+    creep = fit("linear+creep", (10.15, 1.22, 14.14), ["EA", "c0"] + [f"creep_{k}" for k in range(10)])
+    assert damping.rms < creep.rms < camp.cur.rms                                     # noise units: damping first
+    by_record = [sum(k * math.log((a / b) ** 2) for k, a, b in zip(n, f.rms_records, camp.cur.rms_records))
+                 for f in (damping, creep)]
+    assert by_record[1] + 10 * math.log(sum(n)) < by_record[0] + 2 * math.log(sum(n))   # per record: creep first
+
+    cands = [("nonlinear_damping", damping.spec, 0, []), ("creep", creep.spec, 2, [])]
+    camp.candidate_models = lambda: cands
+    camp.candidate_fit = lambda e, *a, **k: damping if e == "nonlinear_damping" else creep
+    camp.wider_candidates = lambda c, f: []
+    camp.heldout_of = lambda f: 10.0           # both pass the held-out test (20 -> 10 sigma)
+    camp.settle = lambda f: f
+    camp.retest_named = lambda step: None
+    assert camp.step()
+    step = camp.steps[-1]
+    assert [c.effect for c in step.candidates] == ["creep", "nonlinear_damping"] and step.effect == "creep"
+    assert all(c.accepted == (c.effect == "creep") for c in step.candidates), [c.verdict for c in step.candidates]

@@ -11,7 +11,10 @@ _baked), and are fitted in turn by one short fit per record with the shared law 
 effect the records can reveal (the union of laws.candidates) is fitted to all records jointly,
 each weighted by its own noise (tether.fit.fit_traces), and judged by the one judge
 (judge.full_data_verdict, judge.heldout_verdict) on the campaign's error in noise units (every
-residual divided by its record's noise), the held-out test on each record's held-out part. Per
+residual divided by its record's noise), the held-out test on each record's held-out part; those
+that pass are ranked by each record's error against its own (Campaign.records_bic_change), and an
+effect whose own law does not reveal it on its lead record is fitted with its wider law in the same
+step (Campaign.wider_candidates). Per
 step every record's error before and after says which record revealed the effect (the one-record
 rule on that record's samples). Each named effect is re-tested once a later one is in
 (Campaign.retest_named); where a record is still missed at the end, the named effects' wider laws
@@ -40,7 +43,7 @@ from ..traces import Trace
 from .document import ordinal
 from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, _side_by_side, fit_model, predict
 from .judge import CRITERIA, _bic, _gap, _law_judged, _slack_acts, bic_change, full_data_verdict, heldout_verdict
-from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates,
+from .laws import (EFFECT, HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates,
                    free_parameters, unrevealed)
 from .nuisance import nuisance_parameters, nuisance_start
 from .records import DiscoveryError, Refinement, Removal, Retest
@@ -378,6 +381,10 @@ class Campaign(Contradictions):
                                  contradicting=contradicting, alone=alone, removals=self.removals,
                                  refinements=self.refinements)
 
+    def per_record(self, m: CampaignFit) -> str:
+        """Each record's error in units of its noise, for the progress lines."""
+        return ", ".join(f"{r.name} {e / r.sigma:.2f}" for r, e in zip(self.records, m.rms_records))
+
     def within_noise(self, m: CampaignFit) -> bool:
         return all(e <= CRITERIA.within_noise * r.sigma for e, r in zip(m.rms_records, self.records))
 
@@ -566,16 +573,56 @@ class Campaign(Contradictions):
             if not able or e in self.cur.effects:
                 continue
             i = max(able, key=lambda j: self.cur.rms_records[j] / self.records[j].sigma)
-            lead = self.records[i]
-            base = ModelFit(spec=self.cur.spec.for_experiment(lead.trace.experiment), effects=self.cur.effects,
-                            params={**self.cur.params, **lead.nz}, free=list(self.cur.free),
-                            rms=self.cur.rms_records[i], predicted=self.cur.predicted[i])
-            for new in _models_for(self.cur.spec, e, lead.trace):
+            for new in _models_for(self.cur.spec, e, self.records[i].trace):
                 if payload and new.hysteresis == "kawabata":
                     continue
-                starts = candidate_starts(base, new.for_experiment(lead.trace.experiment), lead.sc, lead.trace)
-                out.append((e, new, i, starts))
+                out.append((e, new, i, self.starts_on(i, new)))
         return out
+
+    def starts_on(self, i: int, new: ModelSpec) -> list:
+        """The one-record search's starts of ``new`` (the current model and one effect) on record i,
+        warm from the current model with the record's nuisance values (starts.candidate_starts)."""
+        r = self.records[i]
+        base = ModelFit(spec=self.cur.spec.for_experiment(r.trace.experiment), effects=self.cur.effects,
+                        params={**self.cur.params, **r.nz}, free=list(self.cur.free), rms=self.cur.rms_records[i],
+                        predicted=self.cur.predicted[i])
+        return candidate_starts(base, new.for_experiment(r.trace.experiment), r.sc, r.trace)
+
+    def wider_candidates(self, cands: list, fits: list) -> list:
+        """(effect, model, lead, starts) of the wider law (laws.WIDER_LAWS) of each candidate whose
+        own law does not reveal its effect on its lead record (reveals: the record that shows the
+        effect best, by the one-record rule on its own samples) and leaves that record unexplained
+        (a gap of CRITERIA.unexplained_gap or more): fitted in the same step as a law of the same
+        effect, where the lead's rig tries it. The wider law is otherwise tried only at the end and
+        only for a named effect (wider_laws): an effect whose own law cannot reproduce the record
+        that reveals it earns its place, if at all, on the records that cannot, and may never be
+        named to be widened (docs/campaign-discovery.md, fourth round)."""
+        out = []
+        for (e, new, i, _), f in zip(cands, fits):
+            law, wider = WIDER_LAWS.get(e, (None, None))
+            r = self.records[i]
+            if law is None or _law_of(new, e) != law or not f.ok:
+                continue
+            rigs = EFFECT[e].law(wider).rigs
+            if rigs is not None and r.trace.rig not in rigs:
+                continue
+            added = f.n_free - self.cur.n_free
+            if (self.reveals(i, self.cur.rms_records[i], f.rms_records[i], added)
+                    or _gap(f.rms_records[i], r.sigma) < CRITERIA.unexplained_gap * r.sigma):
+                continue
+            other = _with_law(new, e, wider)
+            self.say(f"  {e}: its law {law} leaves {r.name} at {f.rms_records[i] / r.sigma:.2f} x its noise "
+                     f"({self.cur.rms_records[i] / r.sigma:.2f} before): the wider law {wider} is fitted too")
+            out.append((e, other, i, self.starts_on(i, other)))
+        return out
+
+    def reveals(self, i: int, before: float, after: float, added: int) -> bool:
+        """Does a model with ``added`` parameters more, record i's error going from ``before`` to
+        ``after``, earn its place on that record's samples alone (the one-record rule: its own gap at
+        most halved, its own BIC lower)?"""
+        r = self.records[i]
+        bic = _bic(after, added, r.n) - _bic(before, 0, r.n)
+        return full_data_verdict(r.sigma, before, after, bic, added)[0]
 
     def step(self) -> bool:
         cur = self.cur
@@ -585,21 +632,28 @@ class Campaign(Contradictions):
             return False
         self.say(f"step {len(self.steps) + 1}: {len(cands)} candidates on {len(self.records)} records")
         factor = 1.0 if cur is self.fits[0] else self.cap_factor_for(cur)
-        fits = _side_by_side(lambda c, own: self.candidate_fit(c[0], c[1], cur.effects + (c[0],), c[2], c[3], own,
-                                                               factor), cands)
+
+        def fitted(c, own):
+            return self.candidate_fit(c[0], c[1], cur.effects + (c[0],), c[2], c[3], own, factor)
+
+        fits = _side_by_side(fitted, cands)
+        wider = [] if self.budget_hit else self.wider_candidates(cands, fits)
+        cands, fits = cands + wider, fits + _side_by_side(fitted, wider)
         by_effect: dict = {}
         for (e, new, _, _), f in zip(cands, fits):
             if e in RIVAL_LAWS and f.ok:     # each law's fit, for the rival law at the end (rival_law)
                 self.rivals.setdefault(e, {})[_law_of(new, e)] = dict(f.params)
             c = self.judge(e, f)
-            self.say(f"  + {e} ({new.canonical}): campaign RMS error {f.rms:.2f} x noise, BIC {c.bic_change:+.0f}"
+            self.say(f"  + {e} ({new.canonical}): campaign RMS error {f.rms:.2f} x noise ({self.per_record(f)}), "
+                     f"BIC {c.bic_change:+.0f}, by record {c.records_bic_change:+.0f}"
                      + (" passes" if c.accepted else f": {c.verdict}") + f" ({f.seconds:.1f} s)")
-            if e not in by_effect or (c.accepted, -c.bic_change) > (by_effect[e].accepted, -by_effect[e].bic_change):
+            if e not in by_effect or ((c.accepted, -c.records_bic_change)
+                                      > (by_effect[e].accepted, -by_effect[e].records_bic_change)):
                 by_effect[e] = c
         if self.budget_hit:
             self.stop = f"the time budget of {self.budget:.0f} s was spent during step {len(self.steps) + 1}"
             return False
-        results = sorted(by_effect.values(), key=lambda c: c.bic_change)
+        results = sorted(by_effect.values(), key=lambda c: c.records_bic_change)
         passing = [c for c in results if c.accepted]
         win = self.heldout_tests(passing)
         step = CampaignStep(effect=None, model_before=cur.model, model_after=None, rms_before=cur.rms, rms_after=None,
@@ -696,7 +750,8 @@ class Campaign(Contradictions):
         no parameter, only where it acts in some record (judge._slack_acts)."""
         cur = self.cur
         dk = f.n_free - cur.n_free
-        c = CampaignCandidate(effect=effect, fit=f, added_parameters=dk, bic_change=bic_change(cur, f, self.n))
+        c = CampaignCandidate(effect=effect, fit=f, added_parameters=dk, bic_change=bic_change(cur, f, self.n),
+                              records_bic_change=self.records_bic_change(cur, f, dk))
         if not f.ok:
             c.verdict = f"the fit failed: {f.message}"
             return c
@@ -710,6 +765,20 @@ class Campaign(Contradictions):
                 c.accepted, c.verdict = False, "slack never acts in the fitted model on any record"
         return c
 
+    def records_bic_change(self, before: CampaignFit, after: CampaignFit, added: int) -> float:
+        """The BIC change that ranks the candidates that pass: each record's error read against its
+        own (the sum over records of n ln(rms_after^2 / rms_before^2), the likelihood where each
+        record's error variance is its own, estimated, not its noise: Box and Draper's rule for
+        responses of unknown error levels), the ``added`` parameters counted once over all samples.
+        The campaign's error in noise units, which judges, weighs a record by its noise alone: where
+        one record is missed far above its noise (a quiet free vibration the shared hysteresis law
+        cannot follow), its misfit outweighs the rest and a step would name whatever takes the most
+        of it."""
+        if not after.ok:
+            return float("inf")
+        return (sum(r.n * math.log((a / b) ** 2) for r, b, a in zip(self.records, before.rms_records, after.rms_records))
+                + added * math.log(self.n))
+
     def add(self, step: CampaignStep, win: CampaignCandidate) -> None:
         """The winner's effect added; who revealed it (of the records that can reveal it, laws.unrevealed,
         those where it meets the one-record rule on their own samples: their own error before and
@@ -721,14 +790,12 @@ class Campaign(Contradictions):
         step.records_after = list(f.rms_records)
         step.fit_after = f
         revealed, gains = [], []
-        for r, b, a in zip(self.records, cur.rms_records, f.rms_records):
+        for i, (r, b, a) in enumerate(zip(self.records, cur.rms_records, f.rms_records)):
             if unrevealed(r.trace, win.effect):
                 gains.append(-math.inf)     # its error moves with the shared law, not with the effect
                 continue
-            bic = _bic(a, win.added_parameters, r.n) - _bic(b, 0, r.n)
-            ok, _ = full_data_verdict(r.sigma, b, a, bic, win.added_parameters)
             gains.append(_gap(b, r.sigma) / r.sigma - _gap(a, r.sigma) / r.sigma)
-            if ok:
+            if self.reveals(i, b, a, win.added_parameters):
                 revealed.append(r.name)
         if revealed:
             step.revealed_how = "each named record alone: its gap above the noise shrinks as the one-record rule asks"

@@ -95,7 +95,8 @@ def campaign_document(d: CampaignDiscovery) -> dict:
                         for r, b, a in zip(d.records, s.records_before, s.records_after or [None] * len(d.records))],
             "candidates": [{"effect": c.effect, "model": c.fit.model, "added_parameters": c.added_parameters,
                             "rmse_over_noise": c.fit.rms, "heldout_rmse_over_noise": c.heldout_rms,
-                            "bic_change": c.bic_change, "accepted": c.accepted, "verdict": c.verdict}
+                            "bic_change": c.bic_change, "records_bic_change": c.records_bic_change,
+                            "accepted": c.accepted, "verdict": c.verdict}
                            for c in s.candidates]})
     records = []
     for i, r in enumerate(d.records):

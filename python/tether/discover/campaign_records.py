@@ -80,7 +80,8 @@ class CampaignCandidate:
     effect: str
     fit: CampaignFit
     added_parameters: int
-    bic_change: float
+    bic_change: float              # on the campaign's error in noise units: the judge's
+    records_bic_change: float = float("nan")   # each record's error against its own: the rank (Campaign.records_bic_change)
     verdict: str = ""
     accepted: bool = False
     heldout_rms: float = float("nan")
