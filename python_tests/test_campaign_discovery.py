@@ -439,7 +439,7 @@ def test_a_step_ranks_its_candidates_by_each_record_against_its_own_error(tmp_pa
     1000's step took: free vibration 27.68 -> 10.15, load test 1.80 -> 1.22, creep test 14.33 ->
     14.14 x noise, measured 2026-11-27). In noise units the first is ahead (the free vibration,
     with a tenth of the others' noise, outweighs them); read per record against its own error
-    (Campaign.records_bic_change, each record's variance its own) the second is, and the step names
+    (campaign_records.ranked_bic_change, each record's variance its own) the second is, and the step names
     it. Before, the step ranked by the campaign's error in noise units and named the first."""
     from tether.discover.campaign import Campaign, CampaignFit
 

@@ -12,7 +12,7 @@ effect the records can reveal (the union of laws.candidates) is fitted to all re
 each weighted by its own noise (tether.fit.fit_traces), and judged by the one judge
 (judge.full_data_verdict, judge.heldout_verdict) on the campaign's error in noise units (every
 residual divided by its record's noise), the held-out test on each record's held-out part; those
-that pass are ranked by each record's error against its own (Campaign.records_bic_change), and an
+that pass are ranked by each record's error against its own (campaign_records.ranked_bic_change), and an
 effect whose own law does not reveal it on its lead record is fitted with its wider law in the same
 step (Campaign.wider_candidates). Per
 step every record's error before and after says which record revealed the effect (the one-record
@@ -60,7 +60,7 @@ SETTLE_ROUNDS = 2
 
 from .campaign_contradictions import Contradictions
 from .campaign_records import (CampaignCandidate, CampaignDiscovery, CampaignFit, CampaignInputError,  # noqa: F401
-                               CampaignStep, Record, _baked, _law_only, check_campaign)
+                               CampaignStep, Record, _baked, _law_only, check_campaign, ranked_bic_change)
 
 
 @in_one_blas_thread
@@ -751,7 +751,7 @@ class Campaign(Contradictions):
         cur = self.cur
         dk = f.n_free - cur.n_free
         c = CampaignCandidate(effect=effect, fit=f, added_parameters=dk, bic_change=bic_change(cur, f, self.n),
-                              records_bic_change=self.records_bic_change(cur, f, dk))
+                              records_bic_change=ranked_bic_change(self.records, cur, f, dk, self.n))
         if not f.ok:
             c.verdict = f"the fit failed: {f.message}"
             return c
@@ -764,20 +764,6 @@ class Campaign(Contradictions):
             if not acts:
                 c.accepted, c.verdict = False, "slack never acts in the fitted model on any record"
         return c
-
-    def records_bic_change(self, before: CampaignFit, after: CampaignFit, added: int) -> float:
-        """The BIC change that ranks the candidates that pass: each record's error read against its
-        own (the sum over records of n ln(rms_after^2 / rms_before^2), the likelihood where each
-        record's error variance is its own, estimated, not its noise: Box and Draper's rule for
-        responses of unknown error levels), the ``added`` parameters counted once over all samples.
-        The campaign's error in noise units, which judges, weighs a record by its noise alone: where
-        one record is missed far above its noise (a quiet free vibration the shared hysteresis law
-        cannot follow), its misfit outweighs the rest and a step would name whatever takes the most
-        of it."""
-        if not after.ok:
-            return float("inf")
-        return (sum(r.n * math.log((a / b) ** 2) for r, b, a in zip(self.records, before.rms_records, after.rms_records))
-                + added * math.log(self.n))
 
     def add(self, step: CampaignStep, win: CampaignCandidate) -> None:
         """The winner's effect added; who revealed it (of the records that can reveal it, laws.unrevealed,

@@ -5,6 +5,7 @@ into copies of them. The one-record search's are discover.records."""
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -81,7 +82,7 @@ class CampaignCandidate:
     fit: CampaignFit
     added_parameters: int
     bic_change: float              # on the campaign's error in noise units: the judge's
-    records_bic_change: float = float("nan")   # each record's error against its own: the rank (Campaign.records_bic_change)
+    records_bic_change: float = float("nan")   # each record's error against its own: the rank (ranked_bic_change)
     verdict: str = ""
     accepted: bool = False
     heldout_rms: float = float("nan")
@@ -166,3 +167,18 @@ def check_campaign(traces: Sequence[Trace]) -> None:
             raise CampaignInputError(f"{tr.csv_path}: the record is given twice in the campaign (as {seen[key]} "
                                  f"and {tr.stem}); give each record once")
         seen[key] = tr.stem
+
+
+def ranked_bic_change(records: Sequence, before, after, added: int, n: int) -> float:
+    """The BIC change that ranks the candidates that pass: each record's error read against its
+    own (the sum over records of n ln(rms_after^2 / rms_before^2), the likelihood where each
+    record's error variance is its own, estimated, not its noise: Box and Draper's rule for
+    responses of unknown error levels), the ``added`` parameters counted once over all ``n`` samples.
+    The campaign's error in noise units, which judges, weighs a record by its noise alone: where
+    one record is missed far above its noise (a quiet free vibration the shared hysteresis law
+    cannot follow), its misfit outweighs the rest and a step would name whatever takes the most
+    of it."""
+    if not after.ok:
+        return float("inf")
+    return (sum(r.n * math.log((a / b) ** 2) for r, b, a in zip(records, before.rms_records, after.rms_records))
+            + added * math.log(n))
