@@ -61,7 +61,7 @@ def _estimated(trace: Trace, spec, fixed: dict | None = None) -> dict:
 
 def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
               rivals: dict, added: Sequence[str], say: Callable[[str], None], elastic_reshaped: bool = False,
-              incumbent_shaped: bool = False, reseed: Callable | None = None):
+              incumbent_shaped: bool = False, reseed: Callable | None = None, sc=None):
     """An effect's law is chosen in the step that names the effect, beside the effects named so far;
     an effect named after it can change which law fits best (the generator's Iwan hysteresis with
     slack: Bouc-Wen won the hysteresis step, 10.4 x noise in the end, where the Iwan bank with slack
@@ -86,7 +86,8 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     kept its place against the bank on its grid, 3.80 x). ``reseed(model, held) -> (model, held)``:
     the rival law's reseeding moves, run on the rival's fit where it lowers the BIC and the error
     but predicts the held-out part worse, before the verdict (the law in place had its own stages).
-    Returns the model, its held-out error and a Refinement or None."""
+    ``sc``: the scales of ``trace`` where the caller has them (the search's). Returns the model, its
+    held-out error and a Refinement or None."""
 
     effect = "hysteresis"
     law = cur.spec.hysteresis
@@ -103,7 +104,7 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
             **{k: v for k, v in cur.params.items() if k in new.parameters and k not in HYSTERESIS_PARAMETERS[law]}}
     theirs = {k: v for k, v in rival.items() if k in HYSTERESIS_PARAMETERS[other]}
     their_elastic = {k: v for k, v in rival.items() if k in ELASTIC_PARAMETERS and k in new.parameters}
-    starts = [*_own_starts(trace, cur, new, other, mine),
+    starts = [*_own_starts(trace, cur, new, other, mine, sc),
               {**mine, **theirs},
               {**mine, **theirs, **their_elastic},
               {**mine, **theirs, **_law_converted(cur.params, law, theirs, float(trace.length_m))},
@@ -129,7 +130,7 @@ def _fitted_nuisance(cur: ModelFit) -> dict:
     return {k: float(v) for k, v in cur.params.items() if k in NZ.NUISANCE}
 
 
-def _own_starts(trace: Trace, cur: ModelFit, new, law: str, mine: dict) -> list[dict]:
+def _own_starts(trace: Trace, cur: ModelFit, new, law: str, mine: dict, sc=None) -> list[dict]:
     """The registry's starts of ``law`` put into the final model without its hysteresis (``mine``:
     its other terms): a weak force beside that model, from which the fit can only go down (the
     hysteresis step's fit of the rival, without the effects named after it, can start far off:
@@ -141,7 +142,7 @@ def _own_starts(trace: Trace, cur: ModelFit, new, law: str, mine: dict) -> list[
     if entry is None:
         return []
     base = replace(cur, spec=replace(cur.spec, hysteresis="none"), params=dict(mine))
-    return [s for s in entry.starts(base, new, _scales(trace), trace) if s is not None]
+    return [s for s in entry.starts(base, new, sc if sc is not None else _scales(trace), trace) if s is not None]
 
 
 def _law_swapped(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,

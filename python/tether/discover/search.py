@@ -632,7 +632,7 @@ class Search:
                 cap_factor=cap_factor),
             self.rivals["hysteresis"], added, self.say,
             elastic_reshaped=any(r.accepted and r.effect == "nonlinear_stiffness" for r in self.refinements),
-            incumbent_shaped=shaped, reseed=self.reseeded),
+            incumbent_shaped=shaped, reseed=self.reseeded, sc=self.sc),
             "while the rival law was fitted")
         if self.rival_kept:
             self.reshape(set(self.cur.effects) - {"hysteresis"})

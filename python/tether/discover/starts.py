@@ -185,6 +185,18 @@ def _scale_elastic(p: dict, factor: float) -> dict:
     return q
 
 
+#: a weak hysteretic force put beside the base model (Bouc-Wen's, the Iwan bank's): this share of
+#: the record's stiffness, the base's elastic law scaled by WEAK_ELASTIC to make room for it
+WEAK_SHARE = 0.03
+WEAK_ELASTIC = 0.97
+
+
+def _beside(base: ModelFit) -> dict:
+    """The base model's values with its elastic law scaled by WEAK_ELASTIC: the start a weak force
+    is added to."""
+    return _scale_elastic(dict(base.params), WEAK_ELASTIC)
+
+
 def candidate_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None = None) -> list[dict | None]:
     """Starting points for ``new`` (``base`` plus one effect): the starts of the law it adds, in the
     registry (laws.EFFECTS: a law's ``starts``, or its ``starts_from`` the law the model had; the
@@ -230,9 +242,9 @@ def iwan_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None
     from ..fit.iwan_bank import iwan_params, iwan_slip_grid
     from ..models import IWAN_FIT_ELEMENTS
 
-    w = _scale_elastic(dict(base.params), 0.97)
-    bank = iwan_params(iwan_slip_grid(sc.amp / sc.L0), np.full(IWAN_FIT_ELEMENTS, 0.03 * sc.ea / IWAN_FIT_ELEMENTS))
-    w.update(bank)
+    w = _beside(base)
+    w.update(iwan_params(iwan_slip_grid(sc.amp / sc.L0),
+                         np.full(IWAN_FIT_ELEMENTS, WEAK_SHARE * sc.ea / IWAN_FIT_ELEMENTS)))
     return [w, None]
 
 
@@ -265,8 +277,8 @@ def boucwen_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | N
     down from the base model's error (starts far from it, e.g. a strong force that saturates early,
     send lightly damped fits of a forced record into slow, useless regions); then tether.fit's
     equation-error estimate."""
-    w = _scale_elastic(dict(base.params), 0.97)
-    w.update(_boucwen_start(sc, 0.03, 0.5))
+    w = _beside(base)
+    w.update(_boucwen_start(sc, WEAK_SHARE, 0.5))
     return [w, None]
 
 
