@@ -547,11 +547,15 @@ class Search:
         self.adopt_model(new, held)
         return True
 
-    def reshape(self, skip, cap_factor: float = 1.0, where: str | None = None) -> float | None:
+    def reshape(self, skip, cap_factor: float | None = None, where: str | None = None) -> float | None:
         """The shape groups of refine_shapes from the current model, the effects in ``skip`` left out;
         the result taken unless the time budget ran out during the stage (then, with ``where``, the
-        stop reason says so). Returns the refined model's held-out error (NaN where refine_shapes
-        did not ask for it) where one was taken, else None."""
+        stop reason says so). The fits' time cap: ``cap_factor`` of the search's, by default that of
+        a fit extending the current model (extension_cap_factor), as a step's candidates get.
+        Returns the refined model's held-out error (NaN where refine_shapes did not ask for it)
+        where one was taken, else None."""
+        if cap_factor is None:
+            cap_factor = self.extension_cap_factor(self.cur)
         refined, refined_held, refs = refine_shapes(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, extra, own_thread=False: self.shape_fit(tr, sp, eff, starts, extra, own_thread,
