@@ -53,6 +53,9 @@ class Criteria:
     #: the held-out test judges a shape or a law only where the model predicts the held-out part at
     #: most this many times worse than it fits the whole record (a forced record drifts in phase)
     shape_heldout_informative: float = 3.0
+    #: a shape that shrinks the gap to this fraction is not asked the held-out test: a fit of the
+    #: first part then drifts along the law's flat directions, and its prediction says little
+    shape_gap_shrink: float = 0.5
     #: a polynomial damping that lowers the BIC and leaves at most this fraction of the gap is tried
     #: again with the table of c(x): a damping of another shape
     damping_table_trigger: float = 0.8
@@ -167,6 +170,17 @@ def _heldout_judges(held: float, rms: float) -> bool:
     return held <= CRITERIA.shape_heldout_informative * rms
 
 
+def _shape_heldout_asked(rms_before: float, held_before: float, rms: float, sigma: float) -> bool:
+    """Whether a shape (or a finer bank) that fits the whole record at ``rms`` is asked the held-out
+    test: where that prediction can judge (_heldout_judges) and the shape does not shrink the gap to
+    CRITERIA.shape_gap_shrink or less (the law is named already; the docs say why)."""
+    return _heldout_judges(held_before, rms_before) and not _shape_shrinks_gap(rms_before, rms, sigma)
+
+
+def _shape_shrinks_gap(rms_before: float, rms: float, sigma: float) -> bool:
+    return _gap(rms, sigma) <= CRITERIA.shape_gap_shrink * _gap(rms_before, sigma)
+
+
 def _not_kept_for_budget(records) -> None:
     """Refinements judged while the time budget ran out are kept on record, not in the model."""
     for r in records:
@@ -187,6 +201,8 @@ def _shape_judged(rms_before: float, rms: float, bic: float, held_before: float,
                        f"held-out part gets worse: {held_before / sigma:.2f} -> {held / sigma:.2f} x noise")
     return True, f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC {bic:+.0f}, " + (
         f"held-out {held_before / sigma:.2f} -> {held / sigma:.2f} x noise" if math.isfinite(held) else
+        f"held-out test not asked: the gap above the noise shrinks from {_gap(rms_before, sigma) / sigma:.2f} to "
+        f"{_gap(rms, sigma) / sigma:.2f} sigma" if _shape_shrinks_gap(rms_before, rms, sigma) else
         f"held-out test not asked: the model predicts the held-out part {held_before / rms_before:.0f} times "
         f"worse than it fits the whole record, a test that cannot judge a shape")
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..traces import Trace
 from .fitting import _heldout, _side_by_side, ModelFit
-from .judge import CRITERIA, _heldout_judges, _shape_judged, bic_change
+from .judge import CRITERIA, _shape_heldout_asked, _shape_judged, bic_change
 from .laws import _law_of, SHAPE_TERMS
 from .records import Refinement
 from .scales import _Scales
@@ -61,7 +61,7 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
     bics = [bic_change(cur, fm, n) for fm in group_fits]
     # the held-out fits of the groups that lower the BIC, where that prediction can judge: side by side
     asked = [i for i, fm in enumerate(group_fits) if fm.ok and bics[i] < 0.0 and fm.rms < cur.rms
-             and _heldout_judges(cur_held, cur.rms)]
+             and _shape_heldout_asked(cur.rms, cur_held, fm.rms, sigma)]
     part_fits = dict(zip(asked, _side_by_side(
         lambda i, alone: fit(part, cur.spec, cur.effects, [group_fits[i].params], extra=groups[i][1],
                              own_thread=alone), asked)))

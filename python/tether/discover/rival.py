@@ -13,7 +13,7 @@ from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K
 from .. import nuisance as NZ
 from ..traces import Trace
 from .fitting import _heldout, ModelFit
-from .judge import CRITERIA, _gap, _heldout_judges, _law_judged, _shape_judged, bic_change
+from .judge import CRITERIA, _gap, _law_judged, _shape_heldout_asked, _shape_judged, bic_change
 from .laws import _law_of, _with_law, RIVAL_LAWS, SHAPE_TERMS, WIDER_LAWS
 from .records import Refinement
 
@@ -388,7 +388,7 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
     if not fm.ok:
         ok, verdict = False, f"the fit failed: {fm.message}"
     else:
-        if bic < 0.0 and fm.rms < cur.rms and _heldout_judges(cur_held, cur.rms):
+        if bic < 0.0 and fm.rms < cur.rms and _shape_heldout_asked(cur.rms, cur_held, fm.rms, sigma):
             pf = fit(part, fm.spec, fm.effects, [fm.params], extra=extra, cap_factor=cap_factor)
             held = _heldout(trace, fm.spec, pf.params, first) if pf.ok else float("inf")
         ok, verdict = _shape_judged(cur.rms, fm.rms, bic, cur_held, held, sigma,
