@@ -223,3 +223,34 @@ def test_a_shape_refinement_gets_the_time_cap_of_a_fit_extending_the_current_mod
     monkeypatch.setattr(s, "extension_cap_factor", lambda m: 7.5 if m is cur else 1.0)
     s.reshape(set())
     assert caps and all(c == 7.5 for c in caps), caps
+
+
+def test_the_rival_and_wider_laws_get_the_time_cap_of_a_fit_extending_the_current_model(free_vibration,
+                                                                                        monkeypatch):
+    """The last stages fit the current model with another law in place: their caps are those of a
+    fit extending it (times rival_law's own factor), not the start model's (Bouc-Wen's rival, the
+    Iwan bank, was abandoned after 2 s of CPU on a free vibration of the nuisance family, seed 8,
+    record 26)."""
+    from tether.discover import rival
+    tr, sc, lin = free_vibration
+    s = search.Search(tr, "linear", None, 4, 2, None)
+    cur = replace(lin, spec=parse_model("linear+boucwen", tr.experiment), effects=("hysteresis",))
+    s.cur, s.rivals = cur, {"hysteresis": {}}
+    caps = []
+    monkeypatch.setattr(s, "fit", lambda tr_, sp, eff, st, *a, cap_factor=1.0, **kw: caps.append(cap_factor)
+                        or _failed_fit(tr_, sp, eff, st))
+    monkeypatch.setattr(s, "extension_cap_factor", lambda m: 7.5 if m is cur else 1.0)
+
+    def law_fitted(trace, part, first, m, held, sigma, fit, *a, **kw):
+        fit(trace, m.spec, m.effects, [m.params], cap_factor=2.0)
+        return m, held, None
+
+    def wider_fitted(trace, part, first, m, held, sigma, fit, *a, **kw):
+        fit(trace, m.spec, m.effects, [m.params])
+        return m, held, None
+
+    monkeypatch.setattr(rival, "rival_law", law_fitted)
+    monkeypatch.setattr(rival, "wider_law", wider_fitted)
+    s.swap_rival()
+    s.swap_wider_laws()
+    assert caps == [15.0, 7.5], caps

@@ -625,15 +625,17 @@ class Search:
 
     def swap_rival(self) -> None:
         """The hysteresis law fitted again with its rival in its place (rival_law), and the new law's
-        own shape terms (the Iwan bank's slip strains, Bouc-Wen's exponent) where it is kept."""
+        own shape terms (the Iwan bank's slip strains, Bouc-Wen's exponent) where it is kept. Its
+        fits' time caps are those of a fit extending the current model, times rival_law's."""
         added = [s.effect for s in self.steps if s.effect and s.effect in self.cur.effects]
         law = self.cur.spec.hysteresis
         shaped = any(k in HYSTERESIS_PARAMETERS.get(law, ()) for k in self.shape_free)
+        base = self.extension_cap_factor(self.cur)
         self.rival_kept = self.adopt(rival.rival_law(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None, cap_factor=1.0, extra=(): self.fit(
                 tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, extra, baseline_rms=baseline_rms,
-                cap_factor=cap_factor),
+                cap_factor=base * cap_factor),
             self.rivals["hysteresis"], added, self.say,
             elastic_reshaped=any(r.accepted and r.effect == "nonlinear_stiffness" for r in self.refinements),
             incumbent_shaped=shaped, reseed=self.reseeded, sc=self.sc),
@@ -644,10 +646,12 @@ class Search:
     def swap_wider_laws(self) -> None:
         """The elastic law and creep fitted again with their wider laws in their place (wider_law),
         where the model still misses the record."""
+        base = self.extension_cap_factor(self.cur)
         self.adopt(rival.wider_law(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
-                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms),
+                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms,
+                cap_factor=base),
             self.say), "while a wider law was fitted")
 
     def final_fit(self) -> None:
