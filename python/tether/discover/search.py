@@ -152,20 +152,23 @@ class Search:
         self.cap = max(5.0, 2000.0 * t_sim)
         self.fit_cap = self.cap          # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
         self.cur = cur
-        part_fit = self.fit(self.part, spec, self.base_effects, [cur.params], self.sc_part)
+        part_fit = self.fit(self.part, spec, self.base_effects, [cur.params], self.sc_part, cap_factor=1.0)
         self.cur_held = _heldout(trace, spec, part_fit.params, self.first)
         self.say(f"{cur.model}: RMS error {cur.rms:.3g} m = {cur.rms / self.sigma:.2f} x noise ({cur.seconds:.1f} s)")
         self.fits = [cur]
 
     # ---- fits, as every stage asks for them
     def fit(self, tr, sp, eff, starts, scales, extra=(), held=(), own_thread=False, baseline_rms=None,
-            cap_factor=1.0) -> ModelFit:
+            cap_factor: float | None = None) -> ModelFit:
         """fit_model with the search's shape terms free (and those they replace held), the unseen
         knots of the damping table held in a fit of the first part, the stage's time cap and the
         budget's deadline; a fit that ends past the deadline marks the budget spent. The nuisance
         parameters are constants of the whole record: a fit of its first part holds them at the
         values its start carries (the whole record's fit of the same model), so that the held-out
-        test judges the law, not a mass or an offset refitted to bend the first part."""
+        test judges the law, not a mass or an offset refitted to bend the first part. The time cap:
+        ``cap_factor`` of the stage's, by default a step candidate's (candidate_cap_factor)."""
+        if cap_factor is None:
+            cap_factor = self.candidate_cap_factor()
         extra = tuple(extra) + tuple(k for k in self.shape_free if k not in extra and k in sp.parameters)
         held = tuple(held) + self.shape_held
         if tr is self.part:
@@ -368,7 +371,7 @@ class Search:
         record."""
         cur, sigma = self.cur, self.sigma
         jobs = [(eff, new, candidate_starts(cur, new, self.sc, self.trace)) for eff, new in todo]
-        factor = 1.0 if cur is self.fits[0] else self.extension_cap_factor(cur)
+        factor = self.candidate_cap_factor()
         candidate_fits = _side_by_side(
             lambda job, alone, _effects=cur.effects, _rms=cur.rms: self.fit(
                 self.trace, job[1], _effects + (job[0],), job[2], self.sc, own_thread=alone, baseline_rms=_rms,
@@ -410,9 +413,15 @@ class Search:
 
     def part_fit(self, c: CandidateResult, own_thread: bool = False) -> ModelFit:
         """The first part of the record, fitted from the whole record's optimum (as the current
-        model's part fit is: both sides start alike, and each converges to its own optimum)."""
+        model's part fit is: both sides start alike, and each converges to its own optimum), with
+        the time cap the candidate's fit had."""
         return self.fit(self.part, c.fit.spec, c.fit.effects, [c.fit.params], self.sc_part, extra=c.fit.shape,
                         held=_replaced(c.fit.shape), own_thread=own_thread)
+
+    def candidate_cap_factor(self) -> float:
+        """The time cap of a step's candidates and of their held-out fits, as a multiple of the
+        search's: that of a fit extending the current model, but the start model's own."""
+        return 1.0 if self.cur is self.fits[0] else self.extension_cap_factor(self.cur)
 
     def heldout_tests(self, passing: list) -> None:
         """The held-out test, best first, for up to ``heldout_candidates`` of the candidates that pass
