@@ -11,7 +11,7 @@ and a machine yardstick measured just before it (one simulation of the demo reco
 then a table with each wall time scaled to a quiet machine (wall x quiet yardstick / yardstick of
 the record) against the 30 s target, and the medians against the 10 s target.
 
-    python bench/bench_discovery_speed.py [--out DIR] [--only SUBSTRING] [--baseline TETHER]
+    python bench/bench_discovery_speed.py [--out DIR] [--only SUBSTRING] [--names A,B] [--baseline TETHER]
 
 --baseline TETHER: also run another `tether` executable (an older checkout's command line) on each
 record, in alternating order, and print both times (wall, and CPU of all threads, which a loaded
@@ -68,6 +68,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=None, help="directory for the records and results (default: a temporary one)")
     ap.add_argument("--only", default=None, help="run only the records whose name contains this")
+    ap.add_argument("--names", default=None, help="run only these records, in this order (exact names, comma-separated)")
     ap.add_argument("--baseline", default=None, metavar="TETHER",
                     help="another tether executable to run on each record and compare with")
     ap.add_argument("--tether", default=str(Path(sys.executable).with_name("tether")), metavar="TETHER",
@@ -77,6 +78,9 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     out = Path(a.out or tempfile.mkdtemp(prefix="discovery_speed_"))
     records = speed_records(out, a.only)
+    if a.names:
+        by_name = {r[0]: r for r in records}
+        records = [by_name[n] for n in a.names.split(",") if n in by_name]
     yard = _yardstick()
     print(f"machine yardstick: one FMU simulation of the demo record {1e3 * yard:.1f} ms; "
           f"load average {os.getloadavg()[0]:.2f} at the start\n")
