@@ -4,7 +4,9 @@
 Each record of bench/bench_discovery_speed.py is discovered in a fresh process (as the command
 line runs it), with every engine fit (tether.identify_native.fit) wrapped to count what it did.
 Printed per record: the process's CPU time (user + system, all threads), the part of it inside the
-engine's fits, the fits, their simulations (median per fit, total) and the share of those that
+engine's fits, in the data-based starts (``initial_estimate``), in simulations outside the fits
+(``identify_native.simulate``) and in the imports before the run (what is left is Python: the
+search, the judge, the evidence, lazy imports), the fits, their simulations (median per fit, total) and the share of those that
 were finite-difference Jacobian columns, the named effects and rmse_final; then the totals, with
 the machine yardstick of the speed bench measured in the same run.
 
@@ -24,6 +26,7 @@ import resource
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -34,22 +37,52 @@ sys.path.insert(0, str(REPO / "python_tests"))
 
 #: the looser rule of a change that may move results (issue 25's speed work): the same named
 #: effects and rmse_final within this relative difference
-RMSE_REL = 0.02
+RMSE_REL = 0.01
 #: each discovery's wall-time budget: far beyond any record's need, so that the results do not
 #: depend on the machine's load (the default 900 s ran out on a busy machine)
 BUDGET_S = 100000.0
 
 
+def _timed(owners: list, name: str, spent: dict, key: str, depth: threading.local) -> None:
+    """Replace ``name`` on each of ``owners`` (modules) by a wrapper that adds the calling thread's CPU
+    seconds of its outermost calls to ``spent[key]`` (a call inside another wrapped one is not counted)."""
+    plain = getattr(owners[0], name)
+
+    def timed(*args, **kwargs):
+        if getattr(depth, "n", 0):
+            return plain(*args, **kwargs)
+        depth.n, t0 = 1, time.thread_time()
+        try:
+            return plain(*args, **kwargs)
+        finally:
+            depth.n = 0
+            spent[key] += time.thread_time() - t0
+
+    for owner in owners:
+        setattr(owner, name, timed)
+
+
+def _cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    return ru.ru_utime + ru.ru_stime
+
+
 def _one(stem: str, result: str, stats: str, budget: str, engine: str = "{}") -> int:
     """Discover ``stem`` in this process, the engine's fits counted; write the counts to ``stats``."""
+    c0 = _cpu()
     from tether.blas import limit_process
 
     limit_process()
-    import threading
-
+    import tether.fit as tf
+    import tether.fit.engine as tfe
+    import tether.fit.start as tfs
     import tether.identify_native as idn
     from tether.cli import main
 
+    spent = {"imports": _cpu() - c0, "starts": 0.0, "simulations": 0.0}
+    depth = threading.local()
+    _timed([tfs, tf, tfe], "initial_estimate", spent, "starts", depth)
+    _timed([idn], "simulate", spent, "simulations", depth)
     fits: list[dict] = []
     lock = threading.Lock()
     plain_fit = idn.fit
@@ -76,8 +109,7 @@ def _one(stem: str, result: str, stats: str, budget: str, engine: str = "{}") ->
     t0 = time.perf_counter()
     rc = main(["discover", stem, "--json", result, "--budget", budget])
     wall = time.perf_counter() - t0
-    ru = resource.getrusage(resource.RUSAGE_SELF)
-    Path(stats).write_text(json.dumps({"rc": rc, "wall": wall, "cpu": ru.ru_utime + ru.ru_stime, "fits": fits}))
+    Path(stats).write_text(json.dumps({"rc": rc, "wall": wall, "cpu": _cpu(), "fits": fits, **spent}))
     return 0
 
 
@@ -98,6 +130,7 @@ def _profile(name: str, stem: Path, out: Path, budget: float, engine: dict) -> d
             "fits": len(fits), "abandoned": len(fits) - len(done), "sims": sum(sims),
             "sims_median": sims[len(sims) // 2] if sims else 0, "jac": sum(f["jac"] for f in done),
             "iterations": sum(f["iterations"] for f in done),
+            "imports_cpu": st["imports"], "starts_cpu": st["starts"], "simulations_cpu": st["simulations"],
             "named": doc["added_effects"], "rmse_final": doc["rmse_final"],
             "rmse_over_noise": doc["rmse_final_over_noise"]}
 
@@ -109,12 +142,18 @@ def _earlier(path: str | None) -> dict:
     return {r["name"]: r for r in json.loads(Path(path).read_text())}
 
 
+def _share(row: dict, key: str) -> str:
+    """CPU seconds and share of the record's CPU of one part (rows of an older run lack it: '-')."""
+    return f"{row[key]:5.1f} s ({100 * row[key] / max(row['cpu'], 1e-9):3.0f} %)" if key in row else "-"
+
+
 def _print_row(row: dict, earlier: dict | None) -> None:
     if "error" in row:
         print(f"{row['name']:34s} FAILED: {row['error']}", flush=True)
         return
     line = (f"{row['name']:34s} CPU {row['cpu']:6.1f} s  engine {row['engine_cpu']:6.1f} s "
-            f"({100 * row['engine_cpu'] / max(row['cpu'], 1e-9):3.0f} %)  fits {row['fits']:3d} "
+            f"({100 * row['engine_cpu'] / max(row['cpu'], 1e-9):3.0f} %)  starts {_share(row, 'starts_cpu')}  "
+            f"simulations {_share(row, 'simulations_cpu')}  imports {_share(row, 'imports_cpu')}  fits {row['fits']:3d} "
             f"(abandoned {row['abandoned']})  sims {row['sims']:6d} (median/fit {row['sims_median']:4d}, "
             f"Jacobian {100 * row['jac'] / max(row['sims'], 1):3.0f} %)  it {row['iterations']:5d}  "
             f"named {','.join(row['named']) or '-':36s} rmse/noise {row['rmse_over_noise']:5.3f}")
@@ -166,7 +205,11 @@ def main(argv=None) -> int:
     cpu = sorted(r["cpu"] for r in ok)
     eng, tot = sum(r["engine_cpu"] for r in ok), sum(r["cpu"] for r in ok)
     sims, jac = sum(r["sims"] for r in ok), sum(r["jac"] for r in ok)
-    print(f"\n{len(ok)} records; yardstick {1e3 * yard:.1f} ms; CPU median {cpu[len(cpu) // 2]:.1f} s, largest "
+    parts = {k: sum(r.get(k, 0.0) for r in ok) for k in ("starts_cpu", "simulations_cpu", "imports_cpu")}
+    print("\nshares of the CPU: engine fits {:.0f} %, starts {:.0f} %, simulations {:.0f} %, imports {:.0f} %, "
+          "the rest (Python) {:.0f} %".format(100 * eng / tot, *(100 * v / tot for v in parts.values()),
+                                              100 * (tot - eng - sum(parts.values())) / tot))
+    print(f"{len(ok)} records; yardstick {1e3 * yard:.1f} ms; CPU median {cpu[len(cpu) // 2]:.1f} s, largest "
           f"{cpu[-1]:.1f} s, total {tot:.0f} s; engine fits {100 * eng / tot:.0f} % of it; simulations {sims} "
           f"({100 * jac / max(sims, 1):.0f} % Jacobian columns); load average {os.getloadavg()[0]:.2f} at the end")
     earlier = _earlier(a.compare)
