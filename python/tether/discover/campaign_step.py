@@ -84,13 +84,19 @@ class Steps:
         return full_data_verdict(r.sigma, before, after, bic, added)[0]
 
     def step(self) -> bool:
-        cur = self.cur
         cands = self.candidate_models()
         if not cands:
             self.stop = "no effect is left that a record can reveal"
             return False
         self.say(f"step {len(self.steps) + 1}: {len(cands)} candidates on {len(self.records)} records")
-        factor = 1.0 if cur is self.fits[0] else self.cap_factor_for(cur)
+        before = self.cur
+        factor = 1.0 if before is self.fits[0] else self.cap_factor_for(before)
+        refit = self.refit_current(factor)
+        cur = self.cur
+        if self.within_noise(cur):
+            return True                 # the run stops there: every record within the noise
+        if cur is not before:
+            cands = self.candidate_models()     # their leads and starts from the refitted model
 
         def fitted(c, own):
             return self.candidate_fit(c[0], c[1], cur.effects + (c[0],), c[2], c[3], own, factor)
@@ -117,7 +123,7 @@ class Steps:
         win = self.heldout_tests(passing)
         step = CampaignStep(effect=None, model_before=cur.model, model_after=None, rms_before=cur.rms, rms_after=None,
                             records_before=list(cur.rms_records), records_after=None, candidates=results,
-                            fit_before=cur)
+                            fit_before=cur, refit=refit)
         self.steps.append(step)
         if win is None:
             self.stop = "no candidate earns its parameters on the campaign"
@@ -127,6 +133,24 @@ class Steps:
             self.retest_named(step)
         return True
 
+
+    def refit_current(self, factor: float) -> dict:
+        """The current model fitted the way its candidates are (candidate_fit with no effect added,
+        its lead the record it misses most), so that no candidate is credited with what that refit
+        alone gains (docs/campaign-discovery.md, fifth round); where it lowers the campaign's error
+        it is settled and carried on as the current state, against which every candidate is judged."""
+        cur = self.cur
+        i = max(range(len(self.records)), key=lambda j: cur.rms_records[j] / self.records[j].sigma)
+        f = self.candidate_fit("", cur.spec, cur.effects, i, self.starts_on(i, cur.spec), cap_factor=factor)
+        kept = f.ok and f.rms < cur.rms and not self.budget_hit
+        self.say(f"  the current model {cur.model} fitted as a candidate is (lead {self.records[i].name}): "
+                 f"{cur.rms:.2f} -> {f.rms:.2f} x noise ({self.per_record(f) if f.ok else f.message}): "
+                 + ("carried on" if kept else "kept as it was") + f" ({f.seconds:.1f} s)")
+        if kept:
+            self.cur = self.settle(f)
+            self.cur_held = self.heldout_of(self.cur)
+            self.fits.append(self.cur)
+        return {"rmse_over_noise_before": cur.rms, "rmse_over_noise_refit": f.rms, "kept": kept}
 
     def heldout_tests(self, passing: list) -> CampaignCandidate | None:
         """The held-out test, best first, for up to ``heldout_candidates`` of the candidates that
