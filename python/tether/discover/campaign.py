@@ -7,7 +7,9 @@ parameters (discover.nuisance.nuisance_parameters). The identification engine fi
 set to several experiments; a record's nuisance values enter that joint fit baked into a copy of
 the record (its offset taken off the measured column, its mass and initial state in its metadata,
 _baked), and are fitted in turn by one short fit per record with the shared law held
-(Campaign.settle). The search is the one-record search's, on the whole campaign: each candidate
+(Campaign.settle). The search is the one-record search's, on the whole campaign: each step first
+fits the current model the way its candidates are fitted and keeps the better (Campaign.refit_current),
+then each candidate
 effect the records can reveal (the union of laws.candidates) is fitted to all records jointly,
 each weighted by its own noise (tether.fit.fit_traces), and judged by the one judge
 (judge.full_data_verdict, judge.heldout_verdict) on the campaign's error in noise units (every
