@@ -7,7 +7,9 @@ parameters (discover.nuisance.nuisance_parameters). The identification engine fi
 set to several experiments; a record's nuisance values enter that joint fit baked into a copy of
 the record (its offset taken off the measured column, its mass and initial state in its metadata,
 _baked), and are fitted in turn by one short fit per record with the shared law held
-(Campaign.settle). The search is the one-record search's, on the whole campaign: each candidate
+(Campaign.settle). The search is the one-record search's, on the whole campaign: each step first
+fits the current model the way its candidates are fitted and keeps the better (Campaign.refit_current),
+then each candidate
 effect the records can reveal (the union of laws.candidates) is fitted to all records jointly,
 each weighted by its own noise (tether.fit.fit_traces), and judged by the one judge
 (judge.full_data_verdict, judge.heldout_verdict) on the campaign's error in noise units (every
@@ -37,20 +39,20 @@ import numpy as np
 from .. import identify_native as idn
 from .. import nuisance as NZ
 from ..blas import in_one_blas_thread
-from ..models import EFFECTS, ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, ModelSpec, parse_model
+from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, ModelSpec, parse_model
 from ..noise import estimate_noise
 from ..traces import Trace
 from .document import ordinal
-from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, _side_by_side, fit_model, predict
-from .judge import CRITERIA, _bic, _gap, _law_judged, _slack_acts, bic_change, full_data_verdict, heldout_verdict
-from .laws import (EFFECT, HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates,
-                   free_parameters, unrevealed)
+from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict
+from .judge import CRITERIA, _gap, _law_judged, bic_change, full_data_verdict
+from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _with_law, _without, candidates,
+                   free_parameters)
 from .nuisance import nuisance_parameters, nuisance_start
 from .records import DiscoveryError, Refinement, Removal, Retest
 from .rival import _law_converted, _wider_law_starts
 from .samples import SEARCH_SAMPLES, WHOLE_RECORD_ITERATIONS, _truncated, search_thinning, thinned
 from .scales import _scales
-from .starts import _reduced_starts, candidate_starts
+from .starts import _reduced_starts
 
 #: quick iterations of each start of a candidate with several (as fit_model's)
 QUICK_ITERATIONS = 12
@@ -59,6 +61,7 @@ SETTLE_ROUNDS = 2
 
 
 from .campaign_contradictions import Contradictions
+from .campaign_step import Steps
 from .campaign_records import (CampaignCandidate, CampaignDiscovery, CampaignFit, CampaignInputError,  # noqa: F401
                                CampaignStep, Record, _baked, _law_only, check_campaign, ranked_bic_change)
 
@@ -72,7 +75,7 @@ def discover_campaign(traces: Sequence[Trace], start: str = "linear", progress: 
     return Campaign(traces, start, progress, max_steps, heldout_candidates, budget, mass_band, free_nuisance).run()
 
 
-class Campaign(Contradictions):
+class Campaign(Steps, Contradictions):
     """One campaign discovery: the records, the current joint fit and its held-out error, the steps."""
 
     def __init__(self, traces, start, progress, max_steps, heldout_candidates, budget, mass_band, free_nuisance):
@@ -561,113 +564,6 @@ class Campaign(Contradictions):
         self.say(f"{self.cur.model}: campaign RMS error {self.cur.rms:.2f} x noise (" + ", ".join(
             f"{r.name} {e / r.sigma:.2f}" for r, e in zip(self.records, self.cur.rms_records)) + ")")
 
-    def candidate_models(self) -> list:
-        """(effect, model, lead record, starts) of every candidate: the effects any record can reveal
-        that the model lacks, each with its laws (laws._models_for; Kawabata's branches only where
-        every record is a load test); its lead, of the records that can reveal it the one the model
-        misses most (in units of its noise), and the one-record search's starts on that record."""
-        out = []
-        payload = any(r.trace.rig == "payload" for r in self.records)
-        for e in EFFECTS:
-            able = [i for i, r in enumerate(self.records) if e in candidates(r.trace)]
-            if not able or e in self.cur.effects:
-                continue
-            i = max(able, key=lambda j: self.cur.rms_records[j] / self.records[j].sigma)
-            for new in _models_for(self.cur.spec, e, self.records[i].trace):
-                if payload and new.hysteresis == "kawabata":
-                    continue
-                out.append((e, new, i, self.starts_on(i, new)))
-        return out
-
-    def starts_on(self, i: int, new: ModelSpec) -> list:
-        """The one-record search's starts of ``new`` (the current model and one effect) on record i,
-        warm from the current model with the record's nuisance values (starts.candidate_starts)."""
-        r = self.records[i]
-        base = ModelFit(spec=self.cur.spec.for_experiment(r.trace.experiment), effects=self.cur.effects,
-                        params={**self.cur.params, **r.nz}, free=list(self.cur.free), rms=self.cur.rms_records[i],
-                        predicted=self.cur.predicted[i])
-        return candidate_starts(base, new.for_experiment(r.trace.experiment), r.sc, r.trace)
-
-    def wider_candidates(self, cands: list, fits: list) -> list:
-        """(effect, model, lead, starts) of the wider law (laws.WIDER_LAWS) of each candidate whose
-        own law does not reveal its effect on its lead record (reveals: the record that shows the
-        effect best, by the one-record rule on its own samples) and leaves that record unexplained
-        (a gap of CRITERIA.unexplained_gap or more): fitted in the same step as a law of the same
-        effect, where the lead's rig tries it. The wider law is otherwise tried only at the end and
-        only for a named effect (wider_laws): an effect whose own law cannot reproduce the record
-        that reveals it earns its place, if at all, on the records that cannot, and may never be
-        named to be widened (docs/campaign-discovery.md, fourth round)."""
-        out = []
-        for (e, new, i, _), f in zip(cands, fits):
-            law, wider = WIDER_LAWS.get(e, (None, None))
-            r = self.records[i]
-            if law is None or _law_of(new, e) != law or not f.ok:
-                continue
-            rigs = EFFECT[e].law(wider).rigs
-            if rigs is not None and r.trace.rig not in rigs:
-                continue
-            added = f.n_free - self.cur.n_free
-            if (self.reveals(i, self.cur.rms_records[i], f.rms_records[i], added)
-                    or _gap(f.rms_records[i], r.sigma) < CRITERIA.unexplained_gap * r.sigma):
-                continue
-            other = _with_law(new, e, wider)
-            self.say(f"  {e}: its law {law} leaves {r.name} at {f.rms_records[i] / r.sigma:.2f} x its noise "
-                     f"({self.cur.rms_records[i] / r.sigma:.2f} before): the wider law {wider} is fitted too")
-            out.append((e, other, i, self.starts_on(i, other)))
-        return out
-
-    def reveals(self, i: int, before: float, after: float, added: int) -> bool:
-        """Does a model with ``added`` parameters more, record i's error going from ``before`` to
-        ``after``, earn its place on that record's samples alone (the one-record rule: its own gap at
-        most halved, its own BIC lower)?"""
-        r = self.records[i]
-        bic = _bic(after, added, r.n) - _bic(before, 0, r.n)
-        return full_data_verdict(r.sigma, before, after, bic, added)[0]
-
-    def step(self) -> bool:
-        cur = self.cur
-        cands = self.candidate_models()
-        if not cands:
-            self.stop = "no effect is left that a record can reveal"
-            return False
-        self.say(f"step {len(self.steps) + 1}: {len(cands)} candidates on {len(self.records)} records")
-        factor = 1.0 if cur is self.fits[0] else self.cap_factor_for(cur)
-
-        def fitted(c, own):
-            return self.candidate_fit(c[0], c[1], cur.effects + (c[0],), c[2], c[3], own, factor)
-
-        fits = _side_by_side(fitted, cands)
-        wider = [] if self.budget_hit else self.wider_candidates(cands, fits)
-        cands, fits = cands + wider, fits + _side_by_side(fitted, wider)
-        by_effect: dict = {}
-        for (e, new, _, _), f in zip(cands, fits):
-            if e in RIVAL_LAWS and f.ok:     # each law's fit, for the rival law at the end (rival_law)
-                self.rivals.setdefault(e, {})[_law_of(new, e)] = dict(f.params)
-            c = self.judge(e, f)
-            self.say(f"  + {e} ({new.canonical}): campaign RMS error {f.rms:.2f} x noise ({self.per_record(f)}), "
-                     f"BIC {c.bic_change:+.0f}, by record {c.records_bic_change:+.0f}"
-                     + (" passes" if c.accepted else f": {c.verdict}") + f" ({f.seconds:.1f} s)")
-            if e not in by_effect or ((c.accepted, -c.records_bic_change)
-                                      > (by_effect[e].accepted, -by_effect[e].records_bic_change)):
-                by_effect[e] = c
-        if self.budget_hit:
-            self.stop = f"the time budget of {self.budget:.0f} s was spent during step {len(self.steps) + 1}"
-            return False
-        results = sorted(by_effect.values(), key=lambda c: c.records_bic_change)
-        passing = [c for c in results if c.accepted]
-        win = self.heldout_tests(passing)
-        step = CampaignStep(effect=None, model_before=cur.model, model_after=None, rms_before=cur.rms, rms_after=None,
-                            records_before=list(cur.rms_records), records_after=None, candidates=results,
-                            fit_before=cur)
-        self.steps.append(step)
-        if win is None:
-            self.stop = "no candidate earns its parameters on the campaign"
-            return False
-        self.add(step, win)
-        if not self.budget_hit:
-            self.retest_named(step)
-        return True
-
     def retest_named(self, step: CampaignStep) -> None:
         """Does an effect named in an earlier step still earn its parameters on the campaign beside
         the one just added (the one-record search's re-test, Search.retest_named, by the one judge
@@ -722,78 +618,3 @@ class Campaign(Contradictions):
             return True
         return False
 
-    def heldout_tests(self, passing: list) -> CampaignCandidate | None:
-        """The held-out test, best first, for up to ``heldout_candidates`` of the candidates that
-        pass on the whole campaign, more while none of those passes it (Search.heldout_tests' rule;
-        testing only the best two, a campaign of seed 1000 stopped where the cubic law and a
-        damping ranked above creep on the BIC); the rest are not tested. The winner: the best that
-        passes."""
-        cur, win, tested = self.cur, None, 0
-        for c in passing:
-            if tested >= self.heldout_candidates and win is not None:
-                break
-            tested += 1
-            c.heldout_rms = self.heldout_of(c.fit)
-            ok, why = heldout_verdict(1.0, self.cur_held, c.heldout_rms, cur.rms, c.fit.rms)
-            c.verdict += f"; {why}"
-            self.say(f"  {c.effect}: held-out {why}")
-            if ok and win is None:
-                win = c
-            c.accepted = ok and c is win
-        for c in passing[tested:]:
-            c.accepted = False
-            c.verdict += "; not tested on the held-out parts (a better candidate was)"
-        return win
-
-    def judge(self, effect: str, f: CampaignFit) -> CampaignCandidate:
-        """The one-record rule on the campaign's error in noise units (sigma = 1); slack, which adds
-        no parameter, only where it acts in some record (judge._slack_acts)."""
-        cur = self.cur
-        dk = f.n_free - cur.n_free
-        c = CampaignCandidate(effect=effect, fit=f, added_parameters=dk, bic_change=bic_change(cur, f, self.n),
-                              records_bic_change=ranked_bic_change(self.records, cur, f, dk, self.n))
-        if not f.ok:
-            c.verdict = f"the fit failed: {f.message}"
-            return c
-        c.accepted, c.verdict = full_data_verdict(1.0, cur.rms, f.rms, c.bic_change, dk)
-        if c.accepted and effect == "slack":
-            acts = [r for i, r in enumerate(self.records) if _slack_acts(
-                r.trace, cur.spec.for_experiment(r.trace.experiment),
-                ModelFit(spec=f.spec, effects=f.effects, params={**f.params, **f.nz[i]}, free=f.free,
-                         rms=f.rms_records[i], predicted=f.predicted[i]), r.sigma, "")[0]]
-            if not acts:
-                c.accepted, c.verdict = False, "slack never acts in the fitted model on any record"
-        return c
-
-    def add(self, step: CampaignStep, win: CampaignCandidate) -> None:
-        """The winner's effect added; who revealed it (of the records that can reveal it, laws.unrevealed,
-        those where it meets the one-record rule on their own samples: their own error before and
-        after, their own BIC with the added parameters; a record that cannot reveal it is not
-        credited with the error it loses as the shared law moves); the nuisance and the law settled
-        again."""
-        cur, f = self.cur, win.fit
-        step.effect, step.model_after, step.rms_after = win.effect, f.model, f.rms
-        step.records_after = list(f.rms_records)
-        step.fit_after = f
-        revealed, gains = [], []
-        for i, (r, b, a) in enumerate(zip(self.records, cur.rms_records, f.rms_records)):
-            if unrevealed(r.trace, win.effect):
-                gains.append(-math.inf)     # its error moves with the shared law, not with the effect
-                continue
-            gains.append(_gap(b, r.sigma) / r.sigma - _gap(a, r.sigma) / r.sigma)
-            if self.reveals(i, b, a, win.added_parameters):
-                revealed.append(r.name)
-        if revealed:
-            step.revealed_how = "each named record alone: its gap above the noise shrinks as the one-record rule asks"
-        else:
-            best = int(np.argmax(gains))
-            revealed = [self.records[best].name]
-            step.revealed_how = ("jointly: no record alone meets the one-record rule; named is the record whose gap "
-                                 "above the noise shrinks most")
-        step.revealed_by = revealed
-        self.say(f"added {win.effect}: campaign RMS error {cur.rms:.2f} -> {f.rms:.2f} x noise; revealed by "
-                 f"{', '.join(revealed)}")
-        settled = self.settle(f)
-        self.cur = settled
-        self.cur_held = win.heldout_rms if settled is f else self.heldout_of(settled)
-        self.fits.append(self.cur)

@@ -86,6 +86,7 @@ def campaign_document(d: CampaignDiscovery) -> dict:
             "rmse_before_over_noise": s.rms_before, "rmse_after_over_noise": s.rms_after,
             "revealed_by": s.revealed_by, "revealed_how": s.revealed_how,
             "evidence": win.verdict if win else None,
+            "current_refit": s.refit,
             "retests": [{"effect": t.effect, "bic_change": t.bic_change, "kept": t.kept, "verdict": t.verdict,
                          "beside": t.beside}
                         for t in s.retests],

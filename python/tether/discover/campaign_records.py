@@ -103,6 +103,7 @@ class CampaignStep:
     fit_before: CampaignFit | None = field(default=None, repr=False)
     fit_after: CampaignFit | None = field(default=None, repr=False)
     retests: list = field(default_factory=list)    # Retest: the effects named before, tested again beside this one
+    refit: dict | None = None      # the current model fitted as the candidates are, before they were judged
 
 
 @dataclass
