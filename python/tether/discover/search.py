@@ -559,12 +559,11 @@ class Search:
     def reshape(self, skip, cap_factor: float | None = None, where: str | None = None) -> float | None:
         """The shape groups of refine_shapes from the current model, the effects in ``skip`` left out;
         the result taken unless the time budget ran out during the stage (then, with ``where``, the
-        stop reason says so). The fits' time cap: ``cap_factor`` of the search's, by default that of
-        a fit extending the current model (extension_cap_factor), as a step's candidates get.
-        Returns the refined model's held-out error (NaN where refine_shapes did not ask for it)
-        where one was taken, else None."""
+        stop reason says so). The fits' time cap: ``cap_factor`` of the search's, by default a step
+        candidate's (candidate_cap_factor). Returns the refined model's held-out error (NaN where
+        refine_shapes did not ask for it) where one was taken, else None."""
         if cap_factor is None:
-            cap_factor = self.extension_cap_factor(self.cur)
+            cap_factor = self.candidate_cap_factor()
         refined, refined_held, refs = refine_shapes(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, extra, own_thread=False: self.shape_fit(tr, sp, eff, starts, extra, own_thread,
@@ -635,11 +634,11 @@ class Search:
     def swap_rival(self) -> None:
         """The hysteresis law fitted again with its rival in its place (rival_law), and the new law's
         own shape terms (the Iwan bank's slip strains, Bouc-Wen's exponent) where it is kept. Its
-        fits' time caps are those of a fit extending the current model, times rival_law's."""
+        fits' time caps are a step candidate's (candidate_cap_factor), times rival_law's."""
         added = [s.effect for s in self.steps if s.effect and s.effect in self.cur.effects]
         law = self.cur.spec.hysteresis
         shaped = any(k in HYSTERESIS_PARAMETERS.get(law, ()) for k in self.shape_free)
-        base = self.extension_cap_factor(self.cur)
+        base = self.candidate_cap_factor()
         self.rival_kept = self.adopt(rival.rival_law(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None, cap_factor=1.0, extra=(): self.fit(
@@ -654,8 +653,8 @@ class Search:
 
     def swap_wider_laws(self) -> None:
         """The elastic law and creep fitted again with their wider laws in their place (wider_law),
-        where the model still misses the record."""
-        base = self.extension_cap_factor(self.cur)
+        where the model still misses the record, with a step candidate's time caps."""
+        base = self.candidate_cap_factor()
         self.adopt(rival.wider_law(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
