@@ -500,3 +500,29 @@ def test_a_step_judges_its_candidates_against_the_current_model_fitted_as_they_a
     assert camp.cur.rms_records[0] > 3 * camp.records[0].sigma, camp.per_record(camp.cur)
     assert camp.step() and [s.effect for s in camp.steps] == []
     assert camp.cur.spec.canonical == "linear" and camp.within_noise(camp.cur), camp.per_record(camp.cur)
+
+
+@pytest.mark.parametrize("terms, loops", [({"bw_beta": 1e-3, "bw_gamma": -1.3}, False),
+                                           ({"bw_beta": 15.0, "bw_gamma": 5.0}, True)])
+def test_a_campaign_credits_hysteresis_only_where_its_loops_open(tmp_path, terms, loops):
+    """A free vibration and a load test of one tether whose force is a Bouc-Wen law: with beta ~ 0
+    and gamma < 0 the law traces no loop (dz/dx depends on z alone), a stiffening elastic curve, and
+    the campaign must not name hysteresis for it however well it fits; with beta = 15, gamma = 5
+    (the FMU's defaults) it loops, and must. Records: our own model's prediction plus noise of a
+    thousandth of each record's range, so the law is exact."""
+    from tether.discover.campaign import Campaign
+
+    recs, _, _ = cr.campaign(4, effects=set(), experiments=("free_vibration", "load_unload"), sizes=cr.TINY)
+    spec, rng = parse_model("linear+boucwen"), np.random.default_rng(4)
+    params = {"EA": 3620.0, "c0": 1.0, "bw_A": 60.0, "bw_beta": 0.0, "bw_gamma": 0.0, **terms}
+    traces = []
+    for t in (read_trace(s) for s in cr.write_campaign(recs, tmp_path)):
+        y = predict(t, spec, params)
+        traces.append(replace(t, measured=y + rng.normal(0.0, 1e-3 * np.ptp(y), y.size)))
+    camp = Campaign(traces, "linear", None, 5, 2, None, None, False)
+    fit = camp.evaluate(spec, ("hysteresis",), params, ["EA", "c0", "bw_A", "bw_beta", "bw_gamma"], [{}] * 2)
+    camp.cur = camp.evaluate(parse_model("linear"), (), {"EA": 3620.0, "c0": 1.0}, ["EA", "c0"], [{}] * 2)
+    c = camp.judge("hysteresis", fit)
+    print(f"FIGURE campaign, Bouc-Wen {terms}: {fit.rms:.2f} x noise (linear {camp.cur.rms:.1f}): {c.verdict}")
+    assert fit.rms < 1.1 and camp.cur.rms > 100.0
+    assert c.accepted is loops, c.verdict

@@ -566,6 +566,36 @@ def test_slack_is_credited_only_where_it_acts(tmp_path, effects, acts):
     assert verdict == "earns" if acts else "slack never acts" in verdict
 
 
+@pytest.mark.parametrize("terms, loops", [({"bw_beta": 1e-3, "bw_gamma": -1.3}, False),
+                                           ({"bw_gamma": -1.0, "bw_b3": 0.5, "bw_b5": 0.3, "bw_b6": 0.2}, False),
+                                           ({"bw_beta": 15.0, "bw_gamma": 5.0}, True),
+                                           ({"bw_b4": 2.0, "bw_gamma": 10.0}, True),
+                                           ({"bw_b2": 5.0, "bw_gamma": 10.0}, True)])
+def test_hysteresis_is_credited_only_where_its_loops_open(tmp_path, terms, loops):
+    """Bouc-Wen's rate dz/dt = xdot (A - |z|^n psi): where psi's direction-dependent terms (beta on
+    sgn(xdot z), b2 on sgn(x xdot), b4 on sgn(xdot)) vanish, dz/dx depends on z alone, z is a
+    function of x and the force an elastic curve with no loop. A forced record simulated with such a
+    force (a stiffening curve: gamma < 0, or the direction-free b3, b5, b6) must not credit
+    hysteresis, however well the law fits; one whose force opens loops through any of the three
+    terms must."""
+    from tether.models import parse_model
+
+    stem, tr = _write(tmp_path, "forced", "forced", (), 7, noise=1e-5, rate=200.0)
+    trace = read_trace(stem)
+    derived = tr.meta["hidden"]["derived"]
+    spec = parse_model("linear+boucwen").for_experiment(trace.experiment)
+    params = {"EA": derived["k_lin_N_m"] * trace.length_m, "c0": derived["c0_N_s_m"], "bw_A": 60.0,
+              "bw_beta": 0.0, "bw_gamma": 0.0, **terms}
+    truth = D.predict(trace, spec, params)
+    trace = replace(trace, measured=truth + np.random.default_rng(7).normal(0.0, 1e-5, truth.size))
+    fm = D.ModelFit(spec=spec, effects=("hysteresis",), params=params, rms=float(np.sqrt(np.mean(
+        (truth - trace.measured) ** 2))), free=["EA", "c0", "bw_A", "bw_beta", "bw_gamma"], predicted=truth)
+    ok, verdict = judge.acts_as_itself(trace, parse_model("linear"), fm, 1e-5, "hysteresis", "earns")
+    print(f"FIGURE Bouc-Wen {terms}: credited {ok}: {verdict}")
+    assert ok is loops
+    assert verdict == "earns" if loops else "loops do not earn their place" in verdict
+
+
 def test_a_part_fit_holds_the_table_knots_beyond_its_reach():
     """The first part of a record reaching 0.05 m cannot see the knots of a table 0.02 m apart past
     0.05 m (knots 3-6); those stay at the whole record's values in the part's fit."""

@@ -12,7 +12,8 @@ import numpy as np
 from ..models import EFFECTS, ModelSpec
 from .campaign_records import CampaignCandidate, CampaignFit, CampaignStep, ranked_bic_change
 from .fitting import ModelFit, _side_by_side
-from .judge import CRITERIA, _bic, _gap, _slack_acts, bic_change, full_data_verdict, heldout_verdict
+from .judge import (CRITERIA, _bic, _gap, _slack_acts, bic_change, closed_loops, full_data_verdict, heldout_verdict,
+                    loops_verdict)
 from .laws import EFFECT, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, candidates, unrevealed
 from .starts import candidate_starts
 
@@ -177,7 +178,8 @@ class Steps:
 
     def judge(self, effect: str, f: CampaignFit) -> CampaignCandidate:
         """The one-record rule on the campaign's error in noise units (sigma = 1); slack, which adds
-        no parameter, only where it acts in some record (judge._slack_acts)."""
+        no parameter, only where it acts in some record (judge._slack_acts); hysteresis only where its
+        loops earn their place (judge.loops_verdict)."""
         cur = self.cur
         dk = f.n_free - cur.n_free
         c = CampaignCandidate(effect=effect, fit=f, added_parameters=dk, bic_change=bic_change(cur, f, self.n),
@@ -193,6 +195,10 @@ class Steps:
                          rms=f.rms_records[i], predicted=f.predicted[i]), r.sigma, "")[0]]
             if not acts:
                 c.accepted, c.verdict = False, "slack never acts in the fitted model on any record"
+        if c.accepted and effect == "hysteresis":
+            params, terms = closed_loops(f.spec, f.params)
+            closed = self.evaluate(f.spec, f.effects, params, f.free, f.nz) if terms else f
+            c.accepted, c.verdict = loops_verdict(1.0, closed.rms, f.rms, f.free, terms, self.n, c.verdict)
         return c
 
     def add(self, step: CampaignStep, win: CampaignCandidate) -> None:

@@ -1,6 +1,7 @@
 """The judge: every threshold of acceptance in one place (Criteria), the BIC change computed once
 (bic_change), and the rules side by side: an effect on the whole record (full_data_verdict) and on
-the held-out part (heldout_verdict), slack that must act (_slack_acts), a shape (_shape_judged), a
+the held-out part (heldout_verdict), slack that must act (_slack_acts), hysteresis whose loops
+must earn their place (_loops_open), a shape (_shape_judged), a
 rival law (_law_judged), and when the damping table is tried (_partial_damping_gain). (The Iwan
 bank's restart keeps the same model with the same terms, on a lower error alone: rival.py.)
 docs/discovery.md, "The criteria, and why", tells the measurements behind each value."""
@@ -15,7 +16,7 @@ import numpy as np
 from ..models import ModelSpec
 from ..traces import Trace
 from .fitting import ModelFit, predict
-from .laws import DAMPING_TABLE
+from .laws import DAMPING_TABLE, LOOP_TERMS, _law_of
 from .records import CandidateResult
 
 
@@ -103,6 +104,55 @@ def _slack_acts(trace: Trace, spec: ModelSpec, fm: ModelFit, sigma: float, verdi
         return True, verdict
     return False, (f"slack never acts in the fitted model (with slack off it simulates the same to "
                    f"{diff / sigma:.1g} x noise): the gain is the refit's, not slack's")
+
+
+def acts_as_itself(trace: Trace, spec: ModelSpec, fm: ModelFit, sigma: float, effect: str,
+                   verdict: str) -> tuple[bool, str]:
+    """An effect that passes on the error earns its place only by what it does: slack where it acts
+    (_slack_acts; ``spec`` the model before it), hysteresis where its loops do (_loops_open)."""
+    if effect == "slack":
+        return _slack_acts(trace, spec, fm, sigma, verdict)
+    if effect == "hysteresis":
+        return _loops_open(trace, fm, sigma, verdict)
+    return True, verdict
+
+
+def closed_loops(spec: ModelSpec, params: dict) -> tuple[dict, tuple]:
+    """``params`` with the loop terms of ``spec``'s hysteresis law at zero (Law.loop_terms: the law
+    is then an elastic curve), and those terms; ``params`` and () where the law has none."""
+    terms = LOOP_TERMS.get(_law_of(spec, "hysteresis"), ())
+    return {**params, **{k: 0.0 for k in terms}}, terms
+
+
+def loops_verdict(sigma: float, rms_closed: float, rms: float, free: list, terms: tuple, n: int,
+                  verdict: str) -> tuple[bool, str]:
+    """A hysteresis candidate (RMS error ``rms``, ``free`` its free terms) earns its place only where its
+    loops do, by the whole record's rule against the same fit with them closed (``rms_closed``; no
+    refit: a bound in the loops' favour). A Bouc-Wen force with beta = 0 and gamma < 0 followed a
+    log-cosh stiffness the cubic missed, and hysteresis was named for it."""
+    if not terms or not math.isfinite(rms_closed):
+        return True, verdict
+    k = len([t for t in terms if t in free])
+    bic = _bic(rms, len(free), n) - _bic(rms_closed, len(free) - k, n)
+    ok, why = full_data_verdict(sigma, rms_closed, rms, bic, k)
+    if ok:
+        return True, verdict
+    return False, (f"its loops do not earn their place: with {', '.join(terms)} at zero (no loop) the fitted "
+                   f"model simulates to {rms_closed / sigma:.2f} x noise against {rms / sigma:.2f} ({why}): the "
+                   f"gain is an elastic curve's, not hysteresis's")
+
+
+def _loops_open(trace: Trace, fm: ModelFit, sigma: float, verdict: str) -> tuple[bool, str]:
+    """loops_verdict on one record."""
+    params, terms = closed_loops(fm.spec, fm.params)
+    if not terms:
+        return True, verdict
+    try:
+        closed = predict(trace, fm.spec, params)
+    except (RuntimeError, ValueError):
+        return True, verdict                      # cannot simulate with the loops closed: they act
+    rms = float(np.sqrt(np.mean((closed - np.asarray(trace.measured, float)) ** 2)))
+    return loops_verdict(sigma, rms, fm.rms, fm.free, terms, len(trace.measured), verdict)
 
 
 def _bic(rms: float, k: int, n: int) -> float:

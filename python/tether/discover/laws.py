@@ -28,7 +28,8 @@ class Law:
     of parameter dicts, None for tether.fit's data-based estimate; see starts.candidate_starts),
     ``starts_from`` those of a model that puts it in another law's place, as (that law, starts);
     ``reseed`` the moves that reseed the law's fitted terms where the final model still misses the
-    record, as (function of rival.py, what it does: the stage's words).
+    record, as (function of rival.py, what it does: the stage's words); ``loop_terms`` the terms
+    that open a hysteresis law's loops (at zero the law is elastic: judge._loops_open).
     A switch without a law (slack) has one law, named as its effect, for its starts."""
 
     name: str
@@ -40,6 +41,7 @@ class Law:
     added: bool = True
     starts_from: tuple = ()
     reseed: tuple = ()
+    loop_terms: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,9 @@ EFFECTS = (
     Effect("hysteresis", "hysteresis", "none", (
         Law("boucwen", S.boucwen_starts, shapes=(("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
                                                  ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")),
-            rival="iwan", starts_from=(("kawabata", S.boucwen_from_kawabata_starts),)),
+            rival="iwan", starts_from=(("kawabata", S.boucwen_from_kawabata_starts),),
+            # the direction-dependent terms of psi: at zero, dz/dx depends on z alone and z on x alone
+            loop_terms=("bw_beta", "bw_b2", "bw_b4")),
         # Bouc-Wen's tangent stiffness approaches zero exponentially, inter-fibre friction's falls
         # to zero at a finite strain: on records of the latter Bouc-Wen left 3.4-10 x noise
         # (bench/hysteresis_law_gap.py). Its shape: the slip strains off the fit's grid (a load test
@@ -330,4 +334,8 @@ RIVAL_LAWS = {e.name: tuple(law.name for law in e.laws if law.rival) for e in EF
 #: laws beyond the search's own, by effect (the search's law, the wider law): fitted in the named
 #: law's place only where the final model still misses the record (rival.wider_law), so a record
 #: the search's laws explain takes no longer
+#: the terms that open each hysteresis law's loops (Law.loop_terms), by law
+LOOP_TERMS = {law.name: law.loop_terms for e in EFFECTS for law in e.laws if law.loop_terms}
+
+
 WIDER_LAWS = {e.name: (law.name, law.wider) for e in EFFECTS for law in e.laws if law.wider}

@@ -32,7 +32,7 @@ PLAN = (
     Stage("effects", _ALWAYS, lambda s: True, "search_effects",
           "each effect the record can reveal and the model lacks, with each of its laws, step by step; after a "
           "step, each effect named before the winner, removed",
-          "full_data_verdict, heldout_verdict (and _slack_acts); a removal: full_data_verdict"),
+          "full_data_verdict, heldout_verdict (and acts_as_itself); a removal: full_data_verdict"),
     Stage("shapes", "the budget is not spent", lambda s: not s.budget_hit, "refine_shapes_first",
           "the shape groups of the named laws (SHAPE_TERMS), one at a time from the final model",
           "_shape_judged"),

@@ -17,8 +17,8 @@ from ..traces import Trace
 from .document import _evidence, _slack_seen_by, ordinal
 from .evidence import disagreement, regime_table, regimes, signatures
 from .fitting import _heldout, _side_by_side, DEFAULT_BUDGET, fit_model, ModelFit, predict, SECOND_SEARCH_CAP_SHARE
-from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, bic_change,
-                    full_data_verdict, heldout_verdict)
+from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
+                    bic_change, full_data_verdict, heldout_verdict)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
 from .plan import PLAN
 from ..noise import estimate_noise
@@ -385,8 +385,8 @@ class Search:
                                  signature_text=sig.get(eff, {}).get("text", ""), fit=fm)
             if fm.ok:
                 cr.accepted, cr.verdict = full_data_verdict(sigma, cur.rms, fm.rms, cr.bic_change, dk)
-                if cr.accepted and eff == "slack":
-                    cr.accepted, cr.verdict = _slack_acts(self.trace, cur.spec, fm, sigma, cr.verdict)
+                if cr.accepted:
+                    cr.accepted, cr.verdict = acts_as_itself(self.trace, cur.spec, fm, sigma, eff, cr.verdict)
             else:
                 cr.accepted, cr.verdict = False, f"the fit failed: {fm.message}"
             self.say(f"  + {eff}: RMS error {fm.rms / sigma:.2f} x noise with {dk} more parameter"
