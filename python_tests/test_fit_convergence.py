@@ -94,7 +94,8 @@ def test_intervals_widen_for_residuals_correlated_in_time(tmp_path, rho):
 def test_a_parameter_the_data_do_not_determine_is_written_as_null(tmp_path):
     """An Iwan element that never slips has an infinite variance (the engine's pseudo-inverse);
     its interval and standard error go to the params file as null, and the file stays strict JSON
-    that its schema accepts and `--params` reads (it exited 1 on 'Out of range float values')."""
+    that its schema accepts and `--params` reads (it exited 1 on 'Out of range float values'; so did
+`tether fit` where such a parameter's correlation with itself, inf / inf, was written as NaN)."""
     import json
     import math
 
@@ -108,10 +109,13 @@ def test_a_parameter_the_data_do_not_determine_is_written_as_null(tmp_path):
     r = fit_traces([read_trace(tmp_path / "rec")], "linear", free=["EA", "c0"])
     r.std_error["c0"] = math.inf
     r.ci95["c0"] = (-math.inf, math.inf)
+    r.correlation = np.array(r.correlation, float)
+    r.correlation[1, 1] = math.nan      # the engine's cov / sqrt(cov cov) of an infinite variance: inf / inf
     path = write_fit_params(tmp_path / "p.json", r)
     doc = json.loads(path.read_text(), parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
     assert doc["intervals"]["c0"] is None and doc["std_error"]["c0"] is None
     assert doc["intervals"]["EA"] == [float(x) for x in r.ci95["EA"]]
+    assert doc["correlation"]["matrix"][1][1] is None and doc["correlation"]["matrix"][0][0] == 1.0
     schema = json.loads((Path(__file__).resolve().parents[1] / "docs/schemas/tether-params-1.schema.json").read_text())
     jsonschema.validate(doc, schema)
     assert read_params(path).parameters["c0"] == pytest.approx(r.values["c0"])

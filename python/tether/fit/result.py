@@ -119,7 +119,8 @@ def write_fit_params(path: str | Path, result: FitResult) -> Path:
                       for n, (a, b) in result.ci95.items()},
         "std_error": {n: float(v) if math.isfinite(v) else None for n, v in result.std_error.items()},
         "correlation": {"parameters": list(result.free),
-                        "matrix": [[float(v) for v in row] for row in np.asarray(result.correlation)]},
+                        "matrix": [[float(v) if math.isfinite(v) else None for v in row]
+                                   for row in np.asarray(result.correlation, float)]},
         "unidentifiable": list(result.unidentifiable),
         "rms": float(result.rms),
         "rms_per_trace": {n: float(v) for n, v in zip(result.traces, result.rms_per_trace)},
