@@ -4,7 +4,6 @@ into copies of them. The one-record search's are discover.records."""
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -15,6 +14,7 @@ from .. import nuisance as NZ
 from ..models import ModelSpec
 from ..noise import NoiseEstimate
 from ..traces import Trace
+from .nuisance import baked as _baked  # noqa: F401  (the campaign's name for it)
 from .records import DiscoveryError, Refinement, Removal, Retest
 from .scales import _Scales
 
@@ -128,24 +128,6 @@ class CampaignDiscovery:
     def added_effects(self) -> list:
         """The effects of the final model the search added, in the order they were added."""
         return [s.effect for s in self.steps if s.effect and s.effect in self.final.effects]
-
-
-def _baked(trace: Trace, nz: dict) -> Trace:
-    """``trace`` with its nuisance values ``nz`` made part of the record: the offset taken off the
-    measured column, the input's gain and offset applied, the mass and initial state in its
-    metadata. A joint fit of baked records holds each record's nuisance at its own values (the
-    engine's parameters are shared by all experiments of a fit)."""
-    out = copy.copy(trace)
-    out.measured = np.asarray(trace.measured, float) - float(nz.get("offset_measured", 0.0))
-    if trace.input is not None and ("input_gain" in nz or "offset_input" in nz):
-        out.input = float(nz.get("input_gain", 1.0)) * np.asarray(trace.input, float) + float(nz.get("offset_input", 0.0))
-    if "m" in nz:
-        out.payload_mass_kg = float(nz["m"])
-    if "x0" in nz:
-        out.initial_displacement_m = float(nz["x0"])
-    if "v0" in nz:
-        out.initial_velocity_m_s = float(nz["v0"])
-    return out
 
 
 def _law_only(params: dict, spec: ModelSpec) -> dict:

@@ -22,7 +22,7 @@ from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain,
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
 from .plan import PLAN
 from ..noise import estimate_noise
-from .nuisance import nuisance_parameters, nuisance_start
+from .nuisance import data_start, nuisance_parameters, nuisance_start
 from .. import nuisance as NZ
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Retest, Step
 from .refine import _knots_unseen, _shape_groups, refine_shapes
@@ -143,8 +143,8 @@ class Search:
         self.say(f"fitting the start model {spec.canonical}"
                  + (f" with the nuisance parameters {', '.join(self.nuisance)}" if self.nuisance else ""))
         nz_start = nuisance_start(trace, self.nuisance)
-        cur = fit_model(trace, spec, self.base_effects, [nz_start, None] if nz_start else [None], self.sc,
-                        nuisance=self.nuisance)
+        starts = [data_start(trace, spec, nz_start), None] if nz_start else [None]
+        cur = fit_model(trace, spec, self.base_effects, starts, self.sc, nuisance=self.nuisance)
         if not cur.ok:
             raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
         t_sim = _simulation_seconds(trace, cur)
@@ -173,6 +173,8 @@ class Search:
         held = tuple(held) + self.shape_held
         if tr is self.part:
             held += _knots_unseen(self.part, extra, starts)
+        else:       # the data-based estimate reads the record as the current model's nuisance values describe it
+            starts = [data_start(tr, sp, self.cur.nuisance) if s is None else s for s in starts]
         r = fit_model(tr, sp, eff, starts, scales, time_cap=cap_factor * self.fit_cap, extra=extra, held=held,
                       deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms,
                       nuisance=() if tr is self.part else self.nuisance)
