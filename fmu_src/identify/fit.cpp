@@ -49,6 +49,9 @@ long long thread_cpu_ns()
 struct Problem {
     std::vector<kt::Prepared> exps;
     std::vector<int> par;      // parameter table indices of the free parameters
+    // 1 where the parameter is offset_measured: it adds to the measured column after the
+    // simulation, so its Jacobian column is known without one (additive_column)
+    std::vector<char> additive;
     std::vector<int> log_scale; // 1 log, 0 linear
     std::vector<double> sign, scale; // log: p = sign exp(theta); linear: p = scale theta
     VectorXd lo, hi;           // bounds in theta
@@ -137,18 +140,38 @@ bool one_sided_column(const Problem &P, const VectorXd &th, const VectorXd &r, i
     return true;
 }
 
+// The difference quotient of an additive parameter's column (Problem::additive) without
+// simulating: each residual moves by its experiment's weight times the parameter's change over
+// the same step the finite difference takes (a secant of p(theta), as the simulated column has).
+void additive_column(const Problem &P, int j, double th, double lo_step, double hi_step, MatrixXd &J)
+{
+    const double dp = (P.to_p(j, th + hi_step) - P.to_p(j, th + lo_step)) / (hi_step - lo_step);
+    int off = 0;
+    for (const kt::Prepared &pe : P.exps) {
+        const double w = pe.e->weight > 0 ? pe.e->weight : 1.0;
+        J.col(j).segment(off, pe.e->n).setConstant(pe.measured_output >= 0 ? w * dp : 0.0);
+        off += pe.e->n;
+    }
+}
+
 // central (or forward) difference Jacobian at theta (r = residuals there). A central pair that
 // would leave the box becomes a one-sided difference into it; a point that fails to simulate is
-// replaced by the other side's.
+// replaced by the other side's. An additive parameter's column needs no simulation.
 bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h, bool central, MatrixXd &J, Counters &C)
 {
     const int k = (int)th.size();
     std::vector<VectorXd> pts;
     std::vector<double> steps;
     std::vector<char> two_sided;
+    J.resize(r.size(), k);
     for (int j = 0; j < k; ++j) {
         const bool both = central && th[j] + h <= P.hi[j] && th[j] - h >= P.lo[j];
         const double hj = th[j] + h > P.hi[j] ? -h : h; // one-sided: stay inside the box
+        if (P.additive[(std::size_t)j]) {
+            if (both) additive_column(P, j, th[j], -h, h, J);
+            else additive_column(P, j, th[j], 0.0, hj, J);
+            continue;
+        }
         VectorXd a = th;
         a[j] += both ? h : hj;
         pts.push_back(a);
@@ -165,11 +188,12 @@ bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h,
     P.batch(pts, rs, ok);
     C.evaluations += (long)pts.size();
     C.jacobian_evaluations += (long)pts.size();
-    J.resize(r.size(), k);
-    std::size_t at = 0;
+    std::size_t at = 0, col = 0;
     for (int j = 0; j < k; ++j) {
-        const double hj = steps[(std::size_t)j];
-        if (two_sided[(std::size_t)j]) {
+        if (P.additive[(std::size_t)j]) continue;
+        const std::size_t c = col++;
+        const double hj = steps[c];
+        if (two_sided[c]) {
             if (ok[at] && ok[at + 1]) J.col(j) = (rs[at] - rs[at + 1]) / (2 * h);
             else if (ok[at]) J.col(j) = (rs[at] - r) / h;
             else if (ok[at + 1]) J.col(j) = (r - rs[at + 1]) / h;
@@ -548,6 +572,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             for (int i = 0; i < j; ++i)
                 if (P.par[(std::size_t)i] == idx) { err = std::string("parameter '") + names[j] + "' given twice"; return -1; }
             P.par.push_back(idx);
+            P.additive.push_back(std::strcmp(names[j], "offset_measured") == 0);
             const double lo = lower ? lower[j] : -HUGE_VAL, hi = upper ? upper[j] : HUGE_VAL, s = start[j];
             if (!(lo <= s && s <= hi) || !std::isfinite(s)) {
                 char b[256];
