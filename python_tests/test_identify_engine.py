@@ -450,7 +450,8 @@ def _offset_record(shift: float):
 def test_an_offset_alone_is_fitted_to_the_mean_misfit_without_jacobian_simulations():
     """offset_measured adds to the measured column after the simulation: its least-squares value,
     the law held, is the mean of measured - simulated (closed form), and its Jacobian column needs
-    no simulation (the engine simulated one per Jacobian before)."""
+    no simulation (the outputs at the fit's point are kept; the engine simulated one per Jacobian
+    before)."""
     e, truth = _offset_record(0.0037)
     e.settings = {**e.settings, **truth}
     expected = float(np.mean(e.measured - idn.simulate(e, {})))
@@ -462,9 +463,9 @@ def test_an_offset_alone_is_fitted_to_the_mean_misfit_without_jacobian_simulatio
 
 def test_the_offsets_jacobian_column_equals_the_simulated_one():
     """A fit of EA, c0 and offset_measured: its statistics' central-difference Jacobian (the
-    offset's column computed, not simulated) has the singular values of the same Jacobian built
-    here from simulations, column by column, in the engine's scaled coordinates (EA, c0 log; the
-    offset linear, in units of its start)."""
+    offset's column from the outputs kept at the optimum, not simulated) has the singular values of
+    the same Jacobian built here from simulations, column by column, in the engine's scaled
+    coordinates (EA, c0 log; the offset linear, in units of its start)."""
     e, _ = _offset_record(0.0037)
     start = 0.002
     r = idn.fit([e], {"EA": (100.0, 1e5, 2700.0), "c0": (1e-3, 100.0, 2.0), "offset_measured": (-1.0, 1.0, start)},
