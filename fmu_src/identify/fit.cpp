@@ -10,9 +10,9 @@
 #include <memory>
 #include <mutex>
 #include <random>
-#include <tuple>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include <Eigen/Dense>
