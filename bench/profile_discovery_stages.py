@@ -71,8 +71,8 @@ def _stage_of(stack: list) -> tuple:
 
 
 def _stage_of_old(stack: list, role: str) -> tuple:
-    """An older discover.py: the nested function on the stack, else the sweep of its loop, else the
-    line of discover() (before the loop: the start model; after it: the final fit)."""
+    """An older discover.py: the nested function on the stack, else the sweep of its loop, else
+    where discover() is (before the loop: the start model; past it: the final fit)."""
     names = [n for n, _ in stack]
     if "reshape" in names:
         return ("reseed" if "iwan_stages" in names else "rival law"), role
