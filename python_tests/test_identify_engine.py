@@ -434,3 +434,53 @@ def test_the_statistics_use_the_finite_difference_jacobian_at_the_optimum():
         cols.append((idn.simulate(e, up) - idn.simulate(e, down)) / (2 * h))
     sv = np.linalg.svd(np.column_stack(cols), compute_uv=False)
     assert np.allclose(r.singular_values, sv, rtol=1e-9), (r.singular_values, sv)
+
+
+# ---- offset_measured: its Jacobian column without a simulation ----------------------------------
+def _offset_record(shift: float):
+    truth = {"EA": 3000.0, "c0": 0.8}
+    t = np.arange(2001) * 1e-3
+    settings = {"rig": 2, "stiffness": 1, "damping": 1, "hysteresis": 1, "slack": 0, "m": 2.0, "g": 0.0,
+                "x0": 0.01, "L0": 10.0, "rtol": 1e-10}
+    e = idn.Experiment(t, settings=settings)
+    e.measured = idn.simulate(e, truth) + shift + 1e-5 * np.random.default_rng(5).standard_normal(t.size)
+    return e, truth
+
+
+def test_an_offset_alone_is_fitted_to_the_mean_misfit_without_jacobian_simulations():
+    """offset_measured adds to the measured column after the simulation: its least-squares value,
+    the law held, is the mean of measured - simulated (closed form), and its Jacobian column needs
+    no simulation (the outputs at the fit's point are kept; the engine simulated one per Jacobian
+    before)."""
+    e, truth = _offset_record(0.0037)
+    e.settings = {**e.settings, **truth}
+    expected = float(np.mean(e.measured - idn.simulate(e, {})))
+    r = idn.fit([e], {"offset_measured": (-1.0, 1.0, 0.001)}, n_threads=1)
+    assert r.status == 0, r.message
+    assert abs(r.values[0] - expected) <= 1e-12 * abs(expected), (r.values[0], expected)
+    assert r.jacobian_evaluations == 0 and r.evaluations >= 2, (r.jacobian_evaluations, r.evaluations)
+
+
+def test_the_offsets_jacobian_column_equals_the_simulated_one():
+    """A fit of EA, c0 and offset_measured: its statistics' central-difference Jacobian (the
+    offset's column from the outputs kept at the optimum, not simulated) has the singular values of
+    the same Jacobian built here from simulations, column by column, in the engine's scaled
+    coordinates (EA, c0 log; the offset linear, in units of its start)."""
+    e, _ = _offset_record(0.0037)
+    start = 0.002
+    r = idn.fit([e], {"EA": (100.0, 1e5, 2700.0), "c0": (1e-3, 100.0, 2.0), "offset_measured": (-1.0, 1.0, start)},
+                n_threads=1)
+    assert r.status == 0, r.message
+    h = 1e-3   # kt_fit_options.fd_step, in theta
+    p = r.as_dict()
+    cols = []
+    for n in r.names:
+        up, down = dict(p), dict(p)
+        if n == "offset_measured":
+            up[n], down[n] = p[n] + start * h, p[n] - start * h
+        else:
+            up[n], down[n] = p[n] * np.exp(h), p[n] * np.exp(-h)
+        cols.append((idn.simulate(e, up) - idn.simulate(e, down)) / (2 * h))
+    sv = np.linalg.svd(np.column_stack(cols), compute_uv=False)
+    assert np.allclose(r.singular_values, sv, rtol=1e-8), (r.singular_values, sv)
+    assert abs(p["offset_measured"] - 0.0037) < 3e-6, p

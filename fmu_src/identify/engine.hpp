@@ -93,6 +93,10 @@ bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prep
 // measured column with offset_measured added.
 bool simulate(const Prepared &p, const Setup &S, double *out, std::string &err);
 
+// What simulate adds to its outputs out (n x outputs.size()) for offset_measured: the offset to the
+// measured column (the outputs of a simulation with offset_measured 0 become those with `offset`).
+void add_measured_offset(const Prepared &p, double offset, double *out);
+
 } // namespace kt
 
 #endif

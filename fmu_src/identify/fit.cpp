@@ -5,10 +5,14 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <deque>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <random>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -46,9 +50,50 @@ long long thread_cpu_ns()
     return (long long)ts.tv_sec * 1000000000LL + ts.tv_nsec;
 }
 
+// The model's outputs before offset_measured at the last few points a fit simulated (theta and the
+// problem's size as the key: a horizon stage shares it with shorter records).
+struct RawOutputs {
+    static constexpr std::size_t capacity = 8;
+    std::mutex m;
+    std::deque<std::tuple<VectorXd, int, VectorXd>> at; // (theta, n_res, outputs), newest last
+
+    void put(const VectorXd &th, int n_res, const VectorXd &out)
+    {
+        std::lock_guard<std::mutex> lock(m);
+        at.emplace_back(th, n_res, out);
+        if (at.size() > capacity) at.pop_front();
+    }
+    bool get(const VectorXd &th, int n_res, VectorXd &out)
+    {
+        std::lock_guard<std::mutex> lock(m);
+        for (auto it = at.rbegin(); it != at.rend(); ++it)
+            if (std::get<1>(*it) == n_res && std::get<0>(*it).size() == th.size() && std::get<0>(*it) == th) {
+                out = std::get<2>(*it);
+                return true;
+            }
+        return false;
+    }
+};
+
+// a simulated measured column (n samples from v) made residuals in place: weight * (model - measured)
+bool to_residuals(const kt_experiment &e, double *v, std::string &err)
+{
+    const double w = e.weight > 0 ? e.weight : 1.0;
+    for (int k = 0; k < e.n; ++k) {
+        v[k] = w * (v[k] - e.measured[k]);
+        if (!std::isfinite(v[k])) { err = "non-finite residual"; return false; }
+    }
+    return true;
+}
+
 struct Problem {
     std::vector<kt::Prepared> exps;
     std::vector<int> par;      // parameter table indices of the free parameters
+    // offset_measured's place among them (-1: not free), and the outputs before it of the last
+    // points simulated: it adds to the measured column after the simulation, so its difference
+    // quotient is the simulated one, to the bit, without a simulation (offset_residuals)
+    int offset_j = -1;
+    std::shared_ptr<RawOutputs> raw;
     std::vector<int> log_scale; // 1 log, 0 linear
     std::vector<double> sign, scale; // log: p = sign exp(theta); linear: p = scale theta
     VectorXd lo, hi;           // bounds in theta
@@ -63,10 +108,13 @@ struct Problem {
     double dp_dtheta(int j, double th) const { return log_scale[j] ? sign[j] * std::exp(th) : scale[j]; }
     double to_theta(int j, double p) const { return log_scale[j] ? std::log(p * sign[j]) : p / scale[j]; }
 
-    // residuals at theta; false on a failed simulation
-    bool residuals(const VectorXd &th, VectorXd &r, std::string &err) const
+    // residuals at theta; false on a failed simulation. keep_raw: the outputs before offset_measured
+    // kept (RawOutputs) where it is free
+    bool residuals(const VectorXd &th, VectorXd &r, std::string &err, bool keep_raw = true) const
     {
         r.resize(n_res);
+        const bool keep = keep_raw && raw && offset_j >= 0;
+        VectorXd before(keep ? n_res : 0);
         int off = 0;
         for (const kt::Prepared &pe : exps) {
             kt::Setup S = pe.base;
@@ -74,14 +122,33 @@ struct Problem {
             for (std::size_t j = 0; j < par.size(); ++j)
                 if (!kt::set_parameter(S, par[j], to_p((int)j, th[(Eigen::Index)j]), err)) return false;
             const kt_experiment &e = *pe.e;
-            if (!kt::simulate(pe, S, r.data() + off, err)) return false;
-            const double w = e.weight > 0 ? e.weight : 1.0;
-            for (int k = 0; k < e.n; ++k) {
-                double &v = r[off + k];
-                v = w * (v - e.measured[k]);
-                if (!std::isfinite(v)) { err = "non-finite residual"; return false; }
+            double *out = r.data() + off;
+            const double offset = S.meas.offset_measured;
+            if (keep) S.meas.offset_measured = 0.0;
+            if (!kt::simulate(pe, S, out, err)) return false;
+            if (keep) {
+                std::copy(out, out + e.n, before.data() + off);
+                kt::add_measured_offset(pe, offset, out);
             }
+            if (!to_residuals(e, out, err)) return false;
             off += e.n;
+        }
+        if (keep) raw->put(th, n_res, before);
+        return true;
+    }
+
+    // the residuals at theta from the outputs before offset_measured at a point that differs from
+    // theta in offset_measured only: the same arithmetic as residuals() after its simulation
+    bool offset_residuals(const VectorXd &th, const VectorXd &before, VectorXd &r) const
+    {
+        r = before;
+        const double offset = to_p(offset_j, th[offset_j]);
+        int off = 0;
+        std::string err;
+        for (const kt::Prepared &pe : exps) {
+            kt::add_measured_offset(pe, offset, r.data() + off);
+            if (!to_residuals(*pe.e, r.data() + off, err)) return false;
+            off += pe.e->n;
         }
         return true;
     }
@@ -90,7 +157,8 @@ struct Problem {
     std::atomic<long long> *helper_cpu_ns = nullptr;
 
     // evaluate residuals at several points in parallel
-    void batch(const std::vector<VectorXd> &pts, std::vector<VectorXd> &rs, std::vector<char> &ok) const
+    void batch(const std::vector<VectorXd> &pts, std::vector<VectorXd> &rs, std::vector<char> &ok,
+               bool keep_raw = true) const
     {
         const std::size_t m = pts.size();
         rs.assign(m, VectorXd());
@@ -98,7 +166,7 @@ struct Problem {
         auto work = [&](std::size_t first, std::size_t stride) {
             for (std::size_t i = first; i < m; i += stride) {
                 std::string e;
-                ok[i] = residuals(pts[i], rs[i], e) ? 1 : 0;
+                ok[i] = residuals(pts[i], rs[i], e, keep_raw) ? 1 : 0;
             }
         };
         const std::size_t nt = std::min<std::size_t>((std::size_t)std::max(1, n_threads), m);
@@ -132,39 +200,61 @@ bool one_sided_column(const Problem &P, const VectorXd &th, const VectorXd &r, i
     std::string err;
     ++C.evaluations;
     ++C.jacobian_evaluations;
-    if (!P.residuals(a, ra, err)) return false;
+    if (!P.residuals(a, ra, err, false)) return false;
     J.col(j) = (ra - r) / step;
     return true;
 }
 
 // central (or forward) difference Jacobian at theta (r = residuals there). A central pair that
 // would leave the box becomes a one-sided difference into it; a point that fails to simulate is
-// replaced by the other side's.
+// replaced by the other side's. offset_measured's points are not simulated where the outputs at
+// theta are kept (RawOutputs): the same residuals, the same bits.
 bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h, bool central, MatrixXd &J, Counters &C)
 {
     const int k = (int)th.size();
     std::vector<VectorXd> pts;
     std::vector<double> steps;
     std::vector<char> two_sided;
+    std::vector<int> col_of; // the column of each point
     for (int j = 0; j < k; ++j) {
         const bool both = central && th[j] + h <= P.hi[j] && th[j] - h >= P.lo[j];
         const double hj = th[j] + h > P.hi[j] ? -h : h; // one-sided: stay inside the box
         VectorXd a = th;
         a[j] += both ? h : hj;
         pts.push_back(a);
+        col_of.push_back(j);
         steps.push_back(both ? h : hj);
         two_sided.push_back(both ? 1 : 0);
         if (both) {
             VectorXd b = th;
             b[j] -= h;
             pts.push_back(b);
+            col_of.push_back(j);
         }
     }
-    std::vector<VectorXd> rs;
-    std::vector<char> ok;
-    P.batch(pts, rs, ok);
-    C.evaluations += (long)pts.size();
-    C.jacobian_evaluations += (long)pts.size();
+    std::vector<VectorXd> rs(pts.size());
+    std::vector<char> ok(pts.size(), 0);
+    VectorXd before;
+    const bool kept = P.offset_j >= 0 && P.raw && P.raw->get(th, P.n_res, before);
+    std::vector<VectorXd> simulated;
+    std::vector<std::size_t> simulated_at;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        if (kept && col_of[i] == P.offset_j && P.offset_residuals(pts[i], before, rs[i])) {
+            ok[i] = 1;
+            continue;
+        }
+        simulated.push_back(pts[i]);
+        simulated_at.push_back(i);
+    }
+    std::vector<VectorXd> srs;
+    std::vector<char> sok;
+    P.batch(simulated, srs, sok, false);
+    for (std::size_t i = 0; i < simulated.size(); ++i) {
+        rs[simulated_at[i]] = std::move(srs[i]);
+        ok[simulated_at[i]] = sok[i];
+    }
+    C.evaluations += (long)simulated.size();
+    C.jacobian_evaluations += (long)simulated.size();
     J.resize(r.size(), k);
     std::size_t at = 0;
     for (int j = 0; j < k; ++j) {
@@ -548,6 +638,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             for (int i = 0; i < j; ++i)
                 if (P.par[(std::size_t)i] == idx) { err = std::string("parameter '") + names[j] + "' given twice"; return -1; }
             P.par.push_back(idx);
+            if (std::strcmp(names[j], "offset_measured") == 0) P.offset_j = j;
             const double lo = lower ? lower[j] : -HUGE_VAL, hi = upper ? upper[j] : HUGE_VAL, s = start[j];
             if (!(lo <= s && s <= hi) || !std::isfinite(s)) {
                 char b[256];
@@ -578,6 +669,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             th0[j] = P.to_theta(j, s);
         }
         if (P.n_res <= k) { err = "kt_fit: fewer residuals than parameters"; return -1; }
+        if (P.offset_j >= 0) P.raw = std::make_shared<RawOutputs>();
         for (int sg = 0; sg < n_stages; ++sg) {
             Problem &Q = stages[(std::size_t)sg];
             Q = P;

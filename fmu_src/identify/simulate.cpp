@@ -551,14 +551,18 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     return true;
 }
 
-bool simulate(const Prepared &p, const Setup &S, double *out, std::string &err)
+void add_measured_offset(const Prepared &p, double offset, double *out)
 {
-    if (!simulate_model(p, S.M, S.meas, out, err)) return false;
-    const double offset = S.meas.offset_measured;
     if (offset != 0.0 && p.measured_output >= 0) {
         const std::size_t n_out = p.outputs.size();
         for (int k = 0; k < p.e->n; ++k) out[(std::size_t)k * n_out + (std::size_t)p.measured_output] += offset;
     }
+}
+
+bool simulate(const Prepared &p, const Setup &S, double *out, std::string &err)
+{
+    if (!simulate_model(p, S.M, S.meas, out, err)) return false;
+    add_measured_offset(p, S.meas.offset_measured, out);
     return true;
 }
 

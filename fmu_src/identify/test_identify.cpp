@@ -109,6 +109,17 @@ int main()
         CHECK(rc3 == 0, "fit with offset rc %d: %s / %s", rc3, kt_last_error(), r3.message);
         CHECK(std::fabs(v3[0] / 3000.0 - 1) < 1e-6 && std::fabs(v3[2] - 0.0037) < 1e-9,
               "fit with offset: EA %g offset %g", v3[0], v3[2]);
+        // the offset alone (the model at the experiment's settings, x): the least-squares offset is the
+        // mean of measured - x; its Jacobian columns come from the outputs kept at each point, none simulated
+        double mean = 0;
+        for (int i = 0; i < n; ++i) mean += (shifted[i] - x[i]) / n;
+        const char *only[] = {"offset_measured"};
+        const double olo[] = {-1.0}, ohi[] = {1.0}, ost[] = {0.001};
+        FitBuffers fo(1);
+        const int rco = kt_fit(&e, 1, 1, only, olo, ohi, ost, nullptr, &o, &fo.r);
+        CHECK(rco == 0 && std::fabs(fo.values[0] - mean) < 1e-12 && fo.r.jacobian_evaluations == 0,
+              "offset alone: rc %d, offset %.15g (mean misfit %.15g), %d Jacobian simulations", rco, fo.values[0],
+              mean, fo.r.jacobian_evaluations);
         e.measured = meas.data();
     }
     // input_gain and offset_input: the model is driven by gain * recorded + offset, derivatives times gain,
