@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 import campaign_records as cr
-from tether.discover.campaign import _baked, CampaignInputError, check_campaign, discover_campaign
+from tether.discover.campaign import CampaignInputError, check_campaign, discover_campaign
 from tether.discover.campaign_document import campaign_document
 from tether.discover.fitting import predict
+from tether.discover.nuisance import baked
 from tether.models import parse_model
 from tether.traces import read_trace
 
@@ -162,7 +163,7 @@ def test_baked_record_predicts_as_its_nuisance_values(tmp_path):
     law = {"EA": rec.meta["hidden"]["params"]["EA_N"], "c0": 2.0}
     nz = {"offset_measured": 3e-3, "x0": float(tr.initial_displacement_m) * 0.8}
     y_engine = predict(tr, spec, {**law, **nz})
-    y_baked = predict(_baked(tr, nz), spec, law) + nz["offset_measured"]
+    y_baked = predict(baked(tr, nz), spec, law) + nz["offset_measured"]
     assert np.max(np.abs(y_engine - y_baked)) <= 1e-9 * np.max(np.abs(y_engine))
     assert np.max(np.abs(y_engine - predict(tr, spec, law))) > 1e-3     # the values do act
 

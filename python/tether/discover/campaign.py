@@ -6,7 +6,7 @@ its own length, mass, gravity and initial state (its JSON) and its own noise and
 parameters (discover.nuisance.nuisance_parameters). The identification engine fits one parameter
 set to several experiments; a record's nuisance values enter that joint fit baked into a copy of
 the record (its offset taken off the measured column, its mass and initial state in its metadata,
-_baked), and are fitted in turn by one short fit per record with the shared law held
+nuisance.baked), and are fitted in turn by one short fit per record with the shared law held
 (Campaign.settle). The search is the one-record search's, on the whole campaign: each step first
 fits the current model the way its candidates are fitted and keeps the better (Campaign.refit_current),
 then each candidate
@@ -47,7 +47,7 @@ from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit
 from .judge import CRITERIA, _gap, _law_judged, bic_change, full_data_verdict
 from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _with_law, _without, candidates,
                    free_parameters)
-from .nuisance import nuisance_parameters, nuisance_start
+from .nuisance import baked, nuisance_parameters, nuisance_start
 from .records import DiscoveryError, Refinement, Removal, Retest
 from .rival import _law_converted, _wider_law_starts
 from .samples import SEARCH_SAMPLES, WHOLE_RECORD_ITERATIONS, _truncated, search_thinning, thinned
@@ -63,7 +63,7 @@ SETTLE_ROUNDS = 2
 from .campaign_contradictions import Contradictions
 from .campaign_step import Steps
 from .campaign_records import (CampaignCandidate, CampaignDiscovery, CampaignFit, CampaignInputError,  # noqa: F401
-                               CampaignStep, Record, _baked, _law_only, check_campaign, ranked_bic_change)
+                               CampaignStep, Record, _law_only, check_campaign, ranked_bic_change)
 
 
 @in_one_blas_thread
@@ -193,14 +193,14 @@ class Campaign(Steps, Contradictions):
         sc = self.records[0].sc
         fixed_keys = [k for k in HELD_AT_START if k in spec.parameters and k not in names]
 
-        def baked(k):
-            return [_baked(r.part if parts else r.trace, nz) for r, nz in zip(self.records, start_nzs[k])]
+        def baked_records(k):
+            return [baked(r.part if parts else r.trace, nz) for r, nz in zip(self.records, start_nzs[k])]
 
         def one(k, iterations, cap):
             start = starts[k]
             st = None if start is None else _clean_start(names, start, sc)
             fixed = {n: float(start[n]) for n in fixed_keys if start and n in start}
-            return self.engine_fit(baked(k), spec, names, st, fixed, iterations, cap, own_thread)
+            return self.engine_fit(baked_records(k), spec, names, st, fixed, iterations, cap, own_thread)
 
         def z(res) -> float:
             """The fit's error in noise units (fit_traces' rms is the plain one over all samples)."""
@@ -413,7 +413,7 @@ class Campaign(Steps, Contradictions):
             base = ModelFit(spec=cur.spec.for_experiment(lead.trace.experiment), effects=cur.effects,
                             params=dict(cur.params), free=list(cur.free), rms=cur.rms_records[i],
                             predicted=cur.predicted[i])     # (the record baked: its nuisance in it)
-            starts = _wider_law_starts(_baked(lead.trace, lead.nz), base, new.for_experiment(lead.trace.experiment),
+            starts = _wider_law_starts(baked(lead.trace, lead.nz), base, new.for_experiment(lead.trace.experiment),
                                        effect, law)
             self.swap_law(effect, law, new, [{**cur.params, **st} for st in starts],
                           lambda k, free=tuple(cur.free): k not in free)

@@ -14,7 +14,6 @@ from .. import nuisance as NZ
 from ..models import ModelSpec
 from ..noise import NoiseEstimate
 from ..traces import Trace
-from .nuisance import baked as _baked  # noqa: F401  (the campaign's name for it)
 from .records import DiscoveryError, Refinement, Removal, Retest
 from .scales import _Scales
 

@@ -331,11 +331,11 @@ RIVAL_LAWS = {e.name: tuple(law.name for law in e.laws if law.rival) for e in EF
               if any(law.rival for law in e.laws)}
 
 
-#: laws beyond the search's own, by effect (the search's law, the wider law): fitted in the named
-#: law's place only where the final model still misses the record (rival.wider_law), so a record
-#: the search's laws explain takes no longer
 #: the terms that open each hysteresis law's loops (Law.loop_terms), by law
 LOOP_TERMS = {law.name: law.loop_terms for e in EFFECTS for law in e.laws if law.loop_terms}
 
 
+#: laws beyond the search's own, by effect (the search's law, the wider law): fitted in the named
+#: law's place only where the final model still misses the record (rival.wider_law), so a record
+#: the search's laws explain takes no longer
 WIDER_LAWS = {e.name: (law.name, law.wider) for e in EFFECTS for law in e.laws if law.wider}
