@@ -285,7 +285,8 @@ def test_the_held_out_test_goes_on_while_no_candidate_passes_it():
     camp.cur = CampaignFit(spec=parse_model("linear"), effects=(), params={}, free=[], rms=10.0, rms_records=[10.0],
                            predicted=[])
     camp.cur_held = 10.0
-    camp.heldout_of = lambda f: f.held
+    camp.records = []
+    camp.heldout_of = lambda f, among=None: f.held
     assert not heldout_verdict(1.0, 10.0, 50.0, 10.0, 5.0)[0] and heldout_verdict(1.0, 10.0, 2.0, 10.0, 5.0)[0]
     passing = [cand("nonlinear_stiffness", 5.0, 50.0), cand("nonlinear_damping", 5.0, 40.0), cand("creep", 5.0, 2.0)]
     win = camp.heldout_tests(passing)
@@ -293,6 +294,50 @@ def test_the_held_out_test_goes_on_while_no_candidate_passes_it():
     passing = [cand("creep", 5.0, 2.0), cand("nonlinear_damping", 5.0, 40.0), cand("nonlinear_stiffness", 5.0, 3.0)]
     win = camp.heldout_tests(passing)
     assert win is passing[0] and math.isnan(passing[2].heldout_rms) and "not tested" in passing[2].verdict
+
+
+def test_an_effects_held_out_test_reads_only_the_records_that_can_reveal_it(tmp_path):
+    """Creep, which a free vibration cannot reveal, is judged on the held-out part of the creep
+    test alone: the free vibration's part moves with the shared law, not with creep (campaign 1000
+    of bench/campaign_eval.py: creep took its creep test from 14.11 to 1.05 x noise and was refused
+    because the pooled parts went from 8.54 to 10.70 sigma). An effect every record can reveal is
+    judged on every part, as before (test_the_held_out_test_goes_on_while_no_candidate_passes_it)."""
+    from tether.discover.campaign import Campaign, CampaignCandidate, CampaignFit
+    from tether.discover.judge import heldout_verdict
+
+    recs, _, _ = cr.campaign(SPLIT_SEED, effects=SPLIT_EFFECTS, experiments=SPLIT_EXPERIMENTS, sizes=cr.TINY)
+    traces = [read_trace(s) for s in cr.write_campaign(recs, tmp_path)]
+    # each record's held-out error in noise units, before and with the candidate: the creep test's
+    # part improves five-fold, the free vibration's gets worse
+    held = {"current": (8.0, 10.0), "creep": (12.0, 2.0)}
+
+    def heldout_of(f, among=None):
+        parts = held[f.tag]
+        among = range(len(parts)) if among is None else among
+        return math.sqrt(sum(parts[i] ** 2 for i in among) / len(among))
+
+    def fit(label, rms):
+        f = CampaignFit(spec=parse_model("linear"), effects=(), params={}, free=[], rms=rms,
+                        rms_records=[rms, rms], predicted=[])
+        f.tag = label
+        return f
+
+    camp = Campaign.__new__(Campaign)
+    camp.say, camp.heldout_candidates = (lambda s: None), 2
+    camp.records = [type("R", (), {"trace": t, "name": t.name})() for t in traces]
+    camp.cur = fit("current", 10.0)
+    camp.heldout_of = heldout_of
+    camp.cur_held = heldout_of(camp.cur)
+    creep = CampaignCandidate(effect="creep", fit=fit("creep", 5.0), added_parameters=3, bic_change=-50.0,
+                              accepted=True)
+    # pooled over both parts the gap shrinks only from 9.00 to 8.54 sigma: the old rule refused it
+    assert not heldout_verdict(1.0, camp.cur_held, heldout_of(creep.fit))[0]
+    assert camp.heldout_tests([creep]) is creep and creep.accepted
+    assert creep.heldout_rms == pytest.approx(2.0) and "reveal" in creep.verdict
+    held["creep"] = (12.0, 9.0)          # the creep test's own part barely improves: refused
+    creep = CampaignCandidate(effect="creep", fit=fit("creep", 5.0), added_parameters=3, bic_change=-50.0,
+                              accepted=True)
+    assert camp.heldout_tests([creep]) is None and not creep.accepted
 
 
 def _hysteresis_campaign(folder: Path):

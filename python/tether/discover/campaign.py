@@ -88,7 +88,6 @@ class Campaign(Steps, Contradictions):
         self.records = [self.record(tr, mass_band, free_nuisance, SEARCH_SAMPLES // len(traces)) for tr in traces]
         self.n = sum(r.n for r in self.records)
         self.n_part = sum(r.first for r in self.records)
-        self.n_held = self.n - self.n_part
         for r in self.records:
             parse_model(start, r.trace.experiment)
         self.spec = parse_model(start)
@@ -336,22 +335,26 @@ class Campaign(Steps, Contradictions):
             r.nz = dict(nz)
         return m
 
-    def heldout_of(self, m: CampaignFit) -> float:
+    def heldout_of(self, m: CampaignFit, among: Sequence[int] | None = None) -> float:
         """The campaign's held-out error in noise units: each record's held-out part predicted by the
-        law fitted to every record's first part (the nuisance held at the whole records' values)."""
+        law fitted to every record's first part (the nuisance held at the whole records' values),
+        pooled over the records ``among`` (indices; default every record)."""
         if not m.ok:
             return float("inf")
         pf = self.fit(m.spec, m.effects, [m.params], nzs=m.nz, parts=True)
         if not pf.ok:
             return float("inf")
-        zsq = 0.0
-        for r, nz in zip(self.records, m.nz):
+        among = range(len(self.records)) if among is None else among
+        zsq, n = 0.0, 0
+        for i in among:
+            r, nz = self.records[i], m.nz[i]
             try:
                 y = predict(r.trace, m.spec, {**pf.params, **nz})
             except RuntimeError:
                 return float("inf")
             zsq += float(np.sum(((y[r.first:] - r.trace.measured[r.first:]) / r.sigma) ** 2))
-        v = math.sqrt(zsq / max(self.n_held, 1))
+            n += r.n - r.first
+        v = math.sqrt(zsq / max(n, 1))
         return v if math.isfinite(v) else float("inf")
 
     # ---- the run
@@ -494,7 +497,6 @@ class Campaign(Steps, Contradictions):
             r.first, r.sc, r.every = len(r.part.time), _scales(r.whole), 1
         self.n = sum(r.n for r in self.records)
         self.n_part = sum(r.first for r in self.records)
-        self.n_held = self.n - self.n_part
         carried: dict = {}
 
         def whole(m: CampaignFit | None) -> CampaignFit | None:

@@ -157,17 +157,24 @@ class Steps:
         """The held-out test, best first, for up to ``heldout_candidates`` of the candidates that
         pass on the whole campaign, more while none of those passes it (Search.heldout_tests' rule;
         testing only the best two, a campaign of seed 1000 stopped where the cubic law and a
-        damping ranked above creep on the BIC); the rest are not tested. The winner: the best that
-        passes."""
+        damping ranked above creep on the BIC); the rest are not tested. Each is judged on the
+        held-out parts of the records that can reveal its effect (laws.unrevealed), before and
+        after: another record's part moves with the shared law, not with the effect, as in add().
+        The winner: the best that passes."""
         cur, win, tested = self.cur, None, 0
+        before: dict = {}
         for c in passing:
             if tested >= self.heldout_candidates and win is not None:
                 break
             tested += 1
-            c.heldout_rms = self.heldout_of(c.fit)
-            ok, why = heldout_verdict(1.0, self.cur_held, c.heldout_rms, cur.rms, c.fit.rms)
-            c.verdict += f"; {why}"
-            self.say(f"  {c.effect}: held-out {why}")
+            able = self.able_to_reveal(c.effect)
+            if able not in before:
+                before[able] = self.cur_held if able is None else self.heldout_of(cur, able)
+            c.heldout_rms = self.heldout_of(c.fit, able)
+            ok, why = heldout_verdict(1.0, before[able], c.heldout_rms, cur.rms, c.fit.rms)
+            c.verdict += f"; {why}" + ("" if able is None else " (the records that can reveal it)")
+            self.say(f"  {c.effect}: held-out {why}" + ("" if able is None else
+                     " on " + ", ".join(self.records[i].name for i in able)))
             if ok and win is None:
                 win = c
             c.accepted = ok and c is win
@@ -175,6 +182,12 @@ class Steps:
             c.accepted = False
             c.verdict += "; not tested on the held-out parts (a better candidate was)"
         return win
+
+    def able_to_reveal(self, effect: str) -> tuple | None:
+        """The indices of the records that can reveal ``effect`` (laws.unrevealed), or None where
+        every record can."""
+        able = tuple(i for i, r in enumerate(self.records) if not unrevealed(r.trace, effect))
+        return None if len(able) == len(self.records) else able
 
     def judge(self, effect: str, f: CampaignFit) -> CampaignCandidate:
         """The one-record rule on the campaign's error in noise units (sigma = 1); slack, which adds
