@@ -143,7 +143,7 @@ def test_the_plan_is_the_table_of_the_docs():
 def _state(**kw):
     state = dict(budget_hit=False, search_again=False, rival_kept=False, named_again=lambda: False,
                  shapes_left=lambda: False, reseedable=lambda: False, has_rival=lambda: False,
-                 laws_changed=lambda: set())
+                 laws_changed=lambda: set(), branch_due=lambda: False)
     state.update(kw)
     return types.SimpleNamespace(**state)
 
@@ -169,6 +169,7 @@ def test_the_plan_conditions_read_the_search_state_as_documented():
     assert _due(_state(reseedable=lambda: True)) == ["effects", "shapes", "reseed", "wider laws", "final fit"]
     assert "reseed the rival" in _due(_state(reseedable=lambda: True, rival_kept=True))
     assert "re-test" in _due(_state(laws_changed=lambda: {"nonlinear_stiffness"}))
+    assert _due(_state(branch_due=lambda: True)) == ["effects", "shapes", "wider laws", "rival branch", "final fit"]
 
 
 def test_a_run_whose_budget_is_spent_at_once_runs_the_first_search_and_the_final_fit_only(free_vibration):

@@ -2,7 +2,8 @@
 (bic_change), and the rules side by side: an effect on the whole record (full_data_verdict) and on
 the held-out part (heldout_verdict), slack that must act (_slack_acts), hysteresis whose loops
 must earn their place (_loops_open), a shape (_shape_judged), a
-rival law (_law_judged), and when the damping table is tried (_partial_damping_gain). (The Iwan
+rival law (_law_judged), two laws that tie in a step (rival_tie), two optima of one model
+(optimum_judged), and when the damping table is tried (_partial_damping_gain). (The Iwan
 bank's restart keeps the same model with the same terms, on a lower error alone: rival.py.)
 docs/discovery.md, "The criteria, and why", tells the measurements behind each value."""
 
@@ -10,13 +11,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
 from ..models import ModelSpec
 from ..traces import Trace
 from .fitting import ModelFit, predict
-from .laws import DAMPING_TABLE, LOOP_TERMS, _law_of
+from .laws import DAMPING_TABLE, LOOP_TERMS, RIVAL_LAWS, _law_of
 from .records import CandidateResult
 
 
@@ -66,6 +68,10 @@ class Criteria:
     #: error >= 1.41 x noise): the residual then holds at least as much as the noise itself; a
     #: refined model that misses by less is not searched again for a further effect
     unexplained_gap: float = 1.0
+    #: two laws of one effect tie in the step that names it where the loser's gap is at most this
+    #: multiple of the winner's: fitted beside the effects named so far, they are not told apart
+    #: there, and an effect named later may decide (branch.py carries the loser on)
+    rival_tie: float = 1.25
 
 
 #: the criteria every discovery run judges by
@@ -78,6 +84,33 @@ def bic_change(before: ModelFit, after: ModelFit, n: int) -> float:
     if not after.ok:
         return float("inf")
     return _bic(after.rms, after.n_free, n) - _bic(before.rms, before.n_free, n)
+
+
+def rival_tie(win: CandidateResult, others: Sequence[CandidateResult], sigma: float) -> CandidateResult | None:
+    """The candidate of ``win``'s rival law (RIVAL_LAWS) that passes the whole record's rule and
+    misses it by a gap at most CRITERIA.rival_tie times the winner's (the closest such); None where
+    there is none."""
+    law, rivals = _law_of(win.fit.spec, win.effect), RIVAL_LAWS.get(win.effect, ())
+    tied = [c for c in others if c is not win and c.accepted and c.fit is not None and c.fit.ok and law in rivals
+            and _law_of(c.fit.spec, c.effect) in rivals and _law_of(c.fit.spec, c.effect) != law
+            and _gap(c.rms, sigma) <= CRITERIA.rival_tie * _gap(win.rms, sigma)]
+    return min(tied, key=lambda c: c.rms, default=None)
+
+
+def same_terms(a: ModelFit, b: ModelFit) -> bool:
+    """Whether two fits are of one model with the same free terms (two optima of one least-squares
+    problem)."""
+    return a.spec == b.spec and sorted(a.free) == sorted(b.free)
+
+
+def optimum_judged(rms_before: float, rms: float, sigma: float) -> tuple[bool, str]:
+    """The verdict between two optima of one model with the same free terms (same_terms: the Iwan
+    bank's idle elements restarted, the search carried on by another path): the lower error is the
+    better fit of the same model; what the model adds was judged when it was built."""
+    if rms < rms_before:
+        return True, (f"the same model with the same terms at another optimum: RMS error {rms_before / sigma:.2f} -> "
+                      f"{rms / sigma:.2f} x noise")
+    return False, f"the same model with the same terms: RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise"
 
 
 def _partial_damping_gain(cr: "CandidateResult", sigma: float, rms_before: float) -> bool:

@@ -3,7 +3,7 @@ condition on the search state and its proposer, a method of search.Search that p
 judge (judge.py) judge each proposal, adopts or refuses it and records it (Step, Removal,
 Refinement). Search.run is the loop over PLAN; docs/discovery.md, "The plan", is this table in words.
 The conditions read the state a Search keeps (search.Search: budget_hit, search_again, rival_kept
-and the methods named below)."""
+and the methods named below; branch.py the rival branch's)."""
 
 from __future__ import annotations
 
@@ -62,6 +62,10 @@ PLAN = (
     Stage("re-test", "a last stage changed a law after the last step's re-tests, and the budget is not spent",
           lambda s: not s.budget_hit and bool(s.laws_changed()), "retest_after_refinements",
           "each other named effect removed, one removal at a time", "full_data_verdict"),
+    Stage("rival branch", "a step found two laws of its effect tied (CRITERIA.rival_tie), the model misses the "
+          "record by CRITERIA.unexplained_gap or more, and the budget is not spent", lambda s: s.branch_due(),
+          "carry_rival_branch", "the search as it goes on from that step with the tied law in the winner's place, "
+          "through the stages above", "_law_judged (the branch's final model against the search's)"),
     Stage("final fit", _ALWAYS, lambda s: True, "final_fit",
           "the final model fitted from the searched optimum (on the whole record where the search thinned it)",
           "kept where no worse"),

@@ -13,7 +13,7 @@ from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K
 from .. import nuisance as NZ
 from ..traces import Trace
 from .fitting import _heldout, ModelFit
-from .judge import CRITERIA, _gap, _law_judged, _shape_heldout_asked, _shape_judged, bic_change
+from .judge import CRITERIA, _gap, _law_judged, _shape_heldout_asked, _shape_judged, bic_change, optimum_judged
 from .laws import _law_of, _with_law, RIVAL_LAWS, SHAPE_TERMS, WIDER_LAWS
 from .records import Refinement
 
@@ -257,7 +257,7 @@ def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, 
     where = ("where the fit left them", "moved into the widest gaps between the live elements' slip strains")[
         min(fm.best_start, 1)] if fm.ok else ""
     n_idle = len(idle)
-    if not fm.ok or not fm.rms < cur.rms:
+    if not fm.ok or not optimum_judged(cur.rms, fm.rms, sigma)[0]:
         why = f"the fit failed: {fm.message}" if not fm.ok else (
             f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise: the bank stays as it was")
         r = Refinement("hysteresis", tuple(idle), cur.rms, fm.rms if fm.ok else float("inf"), cur_held,

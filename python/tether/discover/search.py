@@ -27,6 +27,7 @@ from .. import nuisance as NZ
 from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Removal, Retest, Step
 from .refine import _knots_unseen, _shape_groups, refine_shapes
 from . import rival
+from .branch import RivalBranch
 from .rival import IWAN_STAGE_CAP_FACTOR
 from .samples import _truncated, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
 from .scales import _scales
@@ -85,7 +86,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     return Search(trace, start, progress, max_steps, heldout_candidates, budget, nuisance).run()
 
 
-class Search:
+class Search(RivalBranch):
     """One discovery run: the record (searched, and whole where the search thins it), its noise and
     held-out split, the current fit and its held-out error, the steps, removals and refinements so
     far, the time caps and the budget. run() takes the stages in turn: the search for effects
@@ -132,6 +133,9 @@ class Search:
         self.search_again = False        # the plan's second search for effects is due (refine_shapes_first)
         self.effects_before_again = ()   # the named effects when the second search began
         self.rival_kept = False          # the rival law was kept (swap_rival)
+        self.law_candidates: dict = {}   # effect -> the candidates of each of its laws in this step
+        self.branch = None               # the search with a tied law in the winner's place (branch.py)
+        self.branched = False            # this search is such a branch: it sets none aside
         self.stages: list[str] = []      # the plan's stages run so far, in order
         self.stop = ""
         self.fit_start_model()
@@ -325,6 +329,7 @@ class Search:
         if not win.accepted:
             self.stop_without_winner(results)
             return False
+        self.fork_at_tie(win, step, windows)
         self.add(win, results, step, windows)
         self.retest_named(win)
         return True
@@ -344,6 +349,7 @@ class Search:
                     if c.effect == effect and c.fit is not None and c.fit.ok}
             if laws:
                 self.rivals[effect] = laws
+        self.law_candidates = {e: [c for c in results if c.effect == e] for e in RIVAL_LAWS}
         # an effect with several laws (hysteresis: Bouc-Wen or Iwan, in a load test Kawabata too)
         # competes with the best of them
         best_of: dict[str, CandidateResult] = {}
