@@ -7,6 +7,8 @@ keeps and records."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from tether.discover import search
@@ -48,7 +50,7 @@ def test_two_laws_tie_where_the_losers_gap_is_within_the_criterion_of_the_winner
 def _search(cur: ModelFit) -> search.Search:
     s = search.Search.__new__(search.Search)
     s.cur, s.cur_held, s.fits = cur, 3.0 * cur.rms, [cur]
-    s.sigma, s.n, s.say, s.budget_hit = SIGMA, N, (lambda line: None), False
+    s.sigma, s.n, s.say, s.budget_hit, s.deadline = SIGMA, N, (lambda line: None), False, None
     s.steps = [Step(model_before=cur.model, rms_before=cur.rms, heldout_before=s.cur_held, windows=[], regimes={},
                     candidates=[])]
     s.removals, s.refinements, s.fits, s.stages = [], [], [cur], []
@@ -83,6 +85,7 @@ def _carried(s: search.Search, final: ModelFit, held: float) -> search.Search:
     alt = _search(s.cur)
     alt.branched = True
     alt.fork = (_candidate("linear+iwan", 9.83, 14), [], 1, "boucwen")
+    alt.forked_at = time.perf_counter() - 100.0          # the search took 100 s since the fork
 
     def resume():
         alt.cur, alt.cur_held = final, held
@@ -123,6 +126,11 @@ def test_no_branch_is_carried_where_the_model_is_near_the_noise():
     assert s.branch_due()
     s.budget_hit = True
     assert not s.branch_due()
+    # the budget left must hold what the search took since the fork (100 s here)
+    s.budget_hit, s.deadline = False, time.perf_counter() + 60.0
+    assert not s.branch_due()
+    s.deadline = time.perf_counter() + 300.0
+    assert s.branch_due()
 
 
 def test_the_branch_runs_every_stage_of_the_plan_but_the_branch_and_the_final_fit(monkeypatch):

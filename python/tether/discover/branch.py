@@ -9,6 +9,7 @@ free terms). A mixin of search.Search (docs/discovery.md, "The rival branch").""
 from __future__ import annotations
 
 import copy
+import time
 from dataclasses import replace
 
 from .judge import CRITERIA, _gap, _law_judged, bic_change, optimum_judged, rival_tie, same_terms
@@ -39,15 +40,20 @@ class RivalBranch:
         alt.fits, alt.stages = list(self.fits), list(self.stages)
         alt.rivals, alt.branched, alt.branch = {}, True, None
         alt.fork = (carried, windows, len(self.steps), mine)
+        alt.forked_at = time.perf_counter()
         self.branch = alt
         self.say(f"  {win.effect}: the {theirs} law ties with the {mine} law: the search will carry it on too "
                  f"if the model still misses the record at the end")
 
     def branch_due(self) -> bool:
         """A rival branch was set aside, the model still misses the record by CRITERIA.unexplained_gap
-        or more, and the budget is not spent."""
-        return (self.branch is not None and not self.budget_hit
-                and _gap(self.cur.rms, self.sigma) >= CRITERIA.unexplained_gap * self.sigma)
+        or more, and the budget is not spent and holds at least the time the search took since the
+        fork (what the branch will take, about)."""
+        if self.branch is None or self.budget_hit:
+            return False
+        now = time.perf_counter()
+        affordable = self.deadline is None or self.deadline - now >= now - self.branch.forked_at
+        return affordable and _gap(self.cur.rms, self.sigma) >= CRITERIA.unexplained_gap * self.sigma
 
     def carry_rival_branch(self) -> None:
         """The branch carried on through the plan's stages (the final fit aside); its model judged

@@ -63,7 +63,8 @@ PLAN = (
           lambda s: not s.budget_hit and bool(s.laws_changed()), "retest_after_refinements",
           "each other named effect removed, one removal at a time", "full_data_verdict"),
     Stage("rival branch", "a step found two laws of its effect tied (CRITERIA.rival_tie), the model misses the "
-          "record by CRITERIA.unexplained_gap or more, and the budget is not spent", lambda s: s.branch_due(),
+          "record by CRITERIA.unexplained_gap or more, and the budget left holds the time taken since that step",
+          lambda s: s.branch_due(),
           "carry_rival_branch", "the search as it goes on from that step with the tied law in the winner's place, "
           "through the stages above", "_law_judged (the branch's final model against the search's)"),
     Stage("final fit", _ALWAYS, lambda s: True, "final_fit",
