@@ -31,8 +31,8 @@ class RivalBranch:
         if tie is None:
             return
         mine, theirs = _law_of(win.fit.spec, win.effect), _law_of(tie.fit.spec, win.effect)
-        carried = replace(tie, verdict=f"{tie.verdict}; ties with the {mine} law ({_gap(win.rms, self.sigma):.2f} "
-                                       f"against {_gap(tie.rms, self.sigma):.2f} sigma): carried on in its place")
+        gaps = f"{_gap(win.rms, self.sigma) / self.sigma:.2f} against {_gap(tie.rms, self.sigma) / self.sigma:.2f} sigma"
+        carried = replace(tie, verdict=f"{tie.verdict}; ties with the {mine} law ({gaps}): carried on in its place")
         alt = copy.copy(self)
         alt.steps = [*self.steps[:-1], replace(step, candidates=[carried if c is win else c for c in step.candidates],
                                                retests=[])]
