@@ -292,19 +292,23 @@ def _shape_judged(rms_before: float, rms: float, bic: float, held_before: float,
 
 def _law_judged(rms_before: float, rms: float, bic: float, held_before: float, held: float, sigma: float,
                 law: str) -> tuple[bool, str]:
-    """The verdict on an effect's law replaced by its rival (rival_law): kept on a lower BIC and
-    error on the whole record and, where the held-out prediction can judge (_heldout_judges), a
-    prediction of the held-out part no worse. ``held``: the rival's held-out error, NaN where the
-    whole record refused it (its fit of the first part not run); ``law``: the law in place."""
+    """The verdict on an effect's law replaced by another (the rival law, a wider law, the rival
+    branch): kept on a lower BIC and error on the whole record and, where the held-out test is asked
+    as for a shape (_shape_heldout_asked: the prediction can judge, and the new law does not shrink
+    the gap to CRITERIA.shape_gap_shrink or less), a prediction of the held-out part no worse.
+    ``held``: the new law's held-out error, NaN where the whole record refused it (its fit of the
+    first part not run); ``law``: the law in place."""
     if not (bic < 0.0 and rms < rms_before):
         return False, (f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC changes by {bic:+.1f}: "
                        f"the {law} law stays")
-    judges = _heldout_judges(held_before, rms_before)
-    if judges and not held <= held_before:
+    asked = _shape_heldout_asked(rms_before, held_before, rms, sigma)
+    if asked and not held <= held_before:
         return False, (f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC {bic:+.0f}, but the "
                        f"held-out part gets worse: {held_before / sigma:.2f} -> {held / sigma:.2f} x noise")
+    why = ("" if asked else
+           f" (not judged on it: the gap above the noise shrinks from {_gap(rms_before, sigma) / sigma:.2f} to "
+           f"{_gap(rms, sigma) / sigma:.2f} sigma)" if _shape_shrinks_gap(rms_before, rms, sigma) else
+           f" (not judged on it: the model predicts the held-out part {held_before / rms_before:.0f} "
+           f"times worse than it fits the whole record)")
     return True, (f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC {bic:+.0f}, held-out "
-                  f"{held_before / sigma:.2f} -> {held / sigma:.2f} x noise"
-                  + ("" if judges else
-                     f" (not judged on it: the model predicts the held-out part {held_before / rms_before:.0f} "
-                     f"times worse than it fits the whole record)"))
+                  f"{held_before / sigma:.2f} -> {held / sigma:.2f} x noise" + why)
