@@ -340,6 +340,36 @@ def test_an_effects_held_out_test_reads_only_the_records_that_can_reveal_it(tmp_
     assert camp.heldout_tests([creep]) is None and not creep.accepted
 
 
+def test_slack_that_goes_slack_only_where_the_fits_see_is_not_asked_the_held_out_test(tmp_path):
+    """The one-record rule (judge.slack_heldout_unasked) in the campaign's step: slack adds no
+    parameter, and where no record that can reveal it goes slack in its held-out part, that part
+    cannot judge it (campaign 1005 of bench/campaign_eval.py: slack took the campaign from 63.9 to
+    42.5 x noise and was refused on the free vibration's held-out part, 36.9 -> 51.7 sigma, and the
+    search named nothing). Where a record goes slack in its held-out part, the test is asked."""
+    from tether.discover.campaign import Campaign, CampaignCandidate, CampaignFit
+
+    recs, _, _ = cr.campaign(SPLIT_SEED, effects=SPLIT_EFFECTS, experiments=SPLIT_EXPERIMENTS, sizes=cr.TINY)
+    traces = [read_trace(s) for s in cr.write_campaign(recs, tmp_path)]
+
+    def fit(rms):
+        return CampaignFit(spec=parse_model("linear"), effects=(), params={}, free=[], rms=rms,
+                           rms_records=[rms, rms], predicted=[])
+
+    camp = Campaign.__new__(Campaign)
+    camp.say, camp.heldout_candidates = (lambda s: None), 2
+    camp.records = [type("R", (), {"trace": t, "name": t.name})() for t in traces]
+    camp.cur, camp.cur_held = fit(63.9), 36.9
+    camp.heldout_of = lambda f, among=None: 36.9 if f is camp.cur else 51.7
+    for slack_after_first, accepted in ((False, True), (True, False)):
+        asked = []
+        camp.slack_in_held_parts = lambda f, among: asked.append(among) or slack_after_first
+        slack = CampaignCandidate(effect="slack", fit=fit(42.5), added_parameters=0, bic_change=-2269.0,
+                                  accepted=True)
+        assert (camp.heldout_tests([slack]) is slack) is accepted and slack.accepted is accepted
+        assert asked == [(0,)]       # the free vibration: the creep test cannot reveal slack
+        assert ("held-out test not asked" in slack.verdict) is accepted
+
+
 def _hysteresis_campaign(folder: Path):
     """A tether with the generator's Iwan friction (twelve elements): a load-unload test and a creep
     test (the tests' sizes: 409 and 631 samples), its start model fitted."""

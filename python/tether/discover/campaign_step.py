@@ -11,9 +11,10 @@ import numpy as np
 
 from ..models import EFFECTS, ModelSpec
 from .campaign_records import CampaignCandidate, CampaignFit, CampaignStep, ranked_bic_change
+from .evidence import regimes
 from .fitting import ModelFit, _side_by_side
 from .judge import (CRITERIA, _bic, _gap, _slack_acts, bic_change, closed_loops, full_data_verdict, heldout_verdict,
-                    loops_verdict)
+                    loops_verdict, slack_heldout_unasked)
 from .laws import EFFECT, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, candidates, unrevealed
 from .starts import candidate_starts
 
@@ -160,7 +161,8 @@ class Steps:
         damping ranked above creep on the BIC); the rest are not tested. Each is judged on the
         held-out parts of the records that can reveal its effect (laws.unrevealed), before and
         after: another record's part moves with the shared law, not with the effect, as in add().
-        The winner: the best that passes."""
+        Slack is not asked where no such record goes slack in its held-out part (the one-record
+        rule, judge.slack_heldout_unasked). The winner: the best that passes."""
         cur, win, tested = self.cur, None, 0
         before: dict = {}
         for c in passing:
@@ -168,10 +170,15 @@ class Steps:
                 break
             tested += 1
             able = self.able_to_reveal(c.effect)
-            if able not in before:
-                before[able] = self.cur_held if able is None else self.heldout_of(cur, able)
-            c.heldout_rms = self.heldout_of(c.fit, able)
-            ok, why = heldout_verdict(1.0, before[able], c.heldout_rms, cur.rms, c.fit.rms)
+            unasked = c.effect == "slack" and slack_heldout_unasked(
+                c.added_parameters, self.slack_in_held_parts(c.fit, able))
+            if unasked:
+                ok, why = True, unasked
+            else:
+                if able not in before:
+                    before[able] = self.cur_held if able is None else self.heldout_of(cur, able)
+                c.heldout_rms = self.heldout_of(c.fit, able)
+                ok, why = heldout_verdict(1.0, before[able], c.heldout_rms, cur.rms, c.fit.rms)
             c.verdict += f"; {why}" + ("" if able is None else " (the records that can reveal it)")
             self.say(f"  {c.effect}: held-out {why}" + ("" if able is None else
                      " on " + ", ".join(self.records[i].name for i in able)))
@@ -182,6 +189,17 @@ class Steps:
             c.accepted = False
             c.verdict += "; not tested on the held-out parts (a better candidate was)"
         return win
+
+    def record_fit(self, f: CampaignFit, i: int) -> ModelFit:
+        """The campaign fit ``f`` on record i alone: its law with the record's nuisance values."""
+        return ModelFit(spec=f.spec, effects=f.effects, params={**f.params, **f.nz[i]}, free=f.free,
+                        rms=f.rms_records[i], predicted=f.predicted[i])
+
+    def slack_in_held_parts(self, f: CampaignFit, among: tuple | None) -> bool:
+        """Whether ``f`` goes slack in the held-out part of any of the records ``among`` (default all)."""
+        among = range(len(self.records)) if among is None else among
+        return any(regimes(self.records[i].trace, self.record_fit(f, i))["slack"][self.records[i].first:].any()
+                   for i in among)
 
     def able_to_reveal(self, effect: str) -> tuple | None:
         """The indices of the records that can reveal ``effect`` (laws.unrevealed), or None where
@@ -203,9 +221,7 @@ class Steps:
         c.accepted, c.verdict = full_data_verdict(1.0, cur.rms, f.rms, c.bic_change, dk)
         if c.accepted and effect == "slack":
             acts = [r for i, r in enumerate(self.records) if _slack_acts(
-                r.trace, cur.spec.for_experiment(r.trace.experiment),
-                ModelFit(spec=f.spec, effects=f.effects, params={**f.params, **f.nz[i]}, free=f.free,
-                         rms=f.rms_records[i], predicted=f.predicted[i]), r.sigma, "")[0]]
+                r.trace, cur.spec.for_experiment(r.trace.experiment), self.record_fit(f, i), r.sigma, "")[0]]
             if not acts:
                 c.accepted, c.verdict = False, "slack never acts in the fitted model on any record"
         if c.accepted and effect == "hysteresis":

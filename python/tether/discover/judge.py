@@ -97,6 +97,16 @@ def rival_tie(win: CandidateResult, others: Sequence[CandidateResult], sigma: fl
     return min(tied, key=lambda c: c.rms, default=None)
 
 
+def slack_heldout_unasked(added_parameters: int, slack_in_held_part: bool) -> str | None:
+    """Why the held-out test is not asked of slack, or None where it is: slack adds no parameter to
+    overfit with, and a record that goes slack only in the part a fit sees leaves nothing for the
+    held-out part to judge."""
+    if added_parameters == 0 and not slack_in_held_part:
+        return ("held-out test not asked: the record goes slack only in the part the fit sees, and slack adds "
+                "no parameter")
+    return None
+
+
 def same_terms(a: ModelFit, b: ModelFit) -> bool:
     """Whether two fits are of one model with the same free terms (two optima of one least-squares
     problem)."""

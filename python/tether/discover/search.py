@@ -18,7 +18,7 @@ from .document import _evidence, _slack_seen_by, ordinal
 from .evidence import disagreement, regime_table, regimes, signatures
 from .fitting import _heldout, _side_by_side, DEFAULT_BUDGET, fit_model, ModelFit, predict, SECOND_SEARCH_CAP_SHARE
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
-                    bic_change, full_data_verdict, heldout_verdict)
+                    bic_change, full_data_verdict, heldout_verdict, slack_heldout_unasked)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
 from .plan import PLAN
 from ..noise import estimate_noise
@@ -456,12 +456,10 @@ class Search(RivalBranch):
         c.heldout_rms = _heldout(self.trace, c.fit.spec, pf.params, self.first) if pf.ok else float("inf")
         self.say(f"  {c.effect}{label}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was "
                  f"{self.cur_held / sigma:.2f})")
-        if (c.effect == "slack" and c.added_parameters == 0
-                and not regimes(self.trace, c.fit)["slack"][self.first:].any()):
-            # slack adds no parameter to overfit with, and a record that goes slack only in its first
-            # part leaves nothing for the held-out part to judge: asked only where it goes slack
-            c.verdict += ("; held-out test not asked: the record goes slack only in the part the fit "
-                          "sees, and slack adds no parameter")
+        unasked = c.effect == "slack" and slack_heldout_unasked(
+            c.added_parameters, bool(regimes(self.trace, c.fit)["slack"][self.first:].any()))
+        if unasked:
+            c.verdict += f"; {unasked}"
             return
         ok, why = heldout_verdict(sigma, self.cur_held, c.heldout_rms, self.cur.rms, c.rms)
         c.accepted = ok
