@@ -324,7 +324,7 @@ def test_an_effects_held_out_test_reads_only_the_records_that_can_reveal_it(tmp_
 
     camp = Campaign.__new__(Campaign)
     camp.say, camp.heldout_candidates = (lambda s: None), 2
-    camp.records = [type("R", (), {"trace": t, "name": t.name})() for t in traces]
+    camp.records = [type("R", (), {"trace": t, "name": t.name, "sigma": 1.0})() for t in traces]
     camp.cur = fit("current", 10.0)
     camp.heldout_of = heldout_of
     camp.cur_held = heldout_of(camp.cur)
@@ -334,6 +334,15 @@ def test_an_effects_held_out_test_reads_only_the_records_that_can_reveal_it(tmp_
     assert not heldout_verdict(1.0, camp.cur_held, heldout_of(creep.fit))[0]
     assert camp.heldout_tests([creep]) is creep and creep.accepted
     assert creep.heldout_rms == pytest.approx(2.0) and "reveal" in creep.verdict
+    # added, the current held-out error is again every record's, not the creep test's alone
+    from tether.discover.campaign_records import CampaignStep
+
+    camp.settle, camp.reveals, camp.fits = (lambda f: f), (lambda *a: True), []
+    camp.add(CampaignStep(effect=None, model_before="linear", model_after=None, rms_before=10.0, rms_after=None,
+                          records_before=[10.0, 10.0], records_after=None), creep)
+    assert camp.cur is creep.fit and camp.cur_held == pytest.approx(heldout_of(creep.fit)) != creep.heldout_rms
+    camp.cur = fit("current", 10.0)
+    camp.cur_held = heldout_of(camp.cur)
     held["creep"] = (12.0, 9.0)          # the creep test's own part barely improves: refused
     creep = CampaignCandidate(effect="creep", fit=fit("creep", 5.0), added_parameters=3, bic_change=-50.0,
                               accepted=True)

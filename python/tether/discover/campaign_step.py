@@ -260,5 +260,8 @@ class Steps:
                  f"{', '.join(revealed)}")
         settled = self.settle(f)
         self.cur = settled
-        self.cur_held = win.heldout_rms if settled is f else self.heldout_of(settled)
+        # the current held-out error is every record's: the winner's was read on the records that can
+        # reveal its effect, or not at all (slack), where those are not all
+        every = self.able_to_reveal(win.effect) is None and not math.isnan(win.heldout_rms)
+        self.cur_held = win.heldout_rms if settled is f and every else self.heldout_of(settled)
         self.fits.append(self.cur)
