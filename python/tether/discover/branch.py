@@ -58,7 +58,7 @@ class RivalBranch:
     def carry_rival_branch(self) -> None:
         """The branch carried on through the plan's stages (the final fit aside); its model judged
         against the search's (judge._law_judged; judge.optimum_judged where both are the same model with
-the same free terms), and the branch's whole account taken where it is kept."""
+        the same free terms), and the branch's whole account taken where it is kept."""
         alt, cur, sigma = self.branch, self.cur, self.sigma
         self.say(f"carrying on the search with the law that tied in step {alt.fork[2]} (the model misses the "
                  f"record at {cur.rms / sigma:.2f} x noise)")

@@ -3,8 +3,8 @@
 the held-out part (heldout_verdict), slack that must act (_slack_acts), hysteresis whose loops
 must earn their place (_loops_open), a shape (_shape_judged), a
 rival law (_law_judged), two laws that tie in a step (rival_tie), two optima of one model
-(optimum_judged), and when the damping table is tried (_partial_damping_gain). (The Iwan
-bank's restart keeps the same model with the same terms, on a lower error alone: rival.py.)
+(optimum_judged: the Iwan bank's restart in rival.py, the rival branch), and when the damping
+table is tried (_partial_damping_gain).
 docs/discovery.md, "The criteria, and why", tells the measurements behind each value."""
 
 from __future__ import annotations
@@ -91,8 +91,11 @@ def rival_tie(win: CandidateResult, others: Sequence[CandidateResult], sigma: fl
     misses it by a gap at most CRITERIA.rival_tie times the winner's (the closest such); None where
     there is none."""
     law, rivals = _law_of(win.fit.spec, win.effect), RIVAL_LAWS.get(win.effect, ())
-    tied = [c for c in others if c is not win and c.accepted and c.fit is not None and c.fit.ok and law in rivals
-            and _law_of(c.fit.spec, c.effect) in rivals and _law_of(c.fit.spec, c.effect) != law
+    if law not in rivals:
+        return None
+    others_laws = set(rivals) - {law}
+    tied = [c for c in others if c.accepted and c.fit is not None and c.fit.ok
+            and _law_of(c.fit.spec, c.effect) in others_laws
             and _gap(c.rms, sigma) <= CRITERIA.rival_tie * _gap(win.rms, sigma)]
     return min(tied, key=lambda c: c.rms, default=None)
 
