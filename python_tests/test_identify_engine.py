@@ -12,6 +12,7 @@ The FMU: env KT_FMU, else build/KevlarTether.fmu, else /tmp/KT.fmu.
 """
 from __future__ import annotations
 
+import math
 import os
 import sys
 import time
@@ -388,6 +389,66 @@ def test_a_thread_cpu_deadline_counts_only_the_fit_on_its_thread():
     for msg, spent in out:
         assert "CPU-time deadline passed" in msg, msg
         assert limit <= spent < limit + 2 * one, (spent, limit, one)
+
+
+# ---- the work cap: counted in evaluations of the equations, the same under any load -------------
+def test_a_simulation_s_work_is_counted_over_every_restart_and_repeats_exactly():
+    # a forced record restarts the integrator at its samples (CVODE zeroes its counters there):
+    # the work is summed over the restarts, so it grows with the record, and repeats to the unit
+    e = _synthetic(dict(FULL, x0=-0.1184), TRUTH_FULL, 4001, 1e-3, seed=8)
+    params = {n: v[2] for n, v in _free(TRUTH_FULL, {"a1": 1.05}).items()}
+    works = []
+    for _ in range(2):
+        before = idn.simulation_work()
+        idn.simulate(e, params)
+        works.append(idn.simulation_work() - before)
+    assert works[0] == works[1] > 4000   # at least one evaluation per sample: no reset lost its count
+    # a call refused before it simulates adds nothing
+    before = idn.simulation_work()
+    with pytest.raises(RuntimeError, match="no such parameter"):
+        idn.simulate(e, {"no_such_parameter": 1.0})
+    assert idn.simulation_work() == before
+
+
+def test_a_work_cap_stops_the_same_fit_at_the_same_iteration_however_busy_the_machine_is():
+    import threading
+
+    e = _synthetic(dict(SIMPLE, x0=-0.1669), TRUTH_SIMPLE, 2001, 2e-4, seed=9)
+    free = _free(TRUTH_SIMPLE, {"a1": 1.1, "c0": 1.3})
+    whole = idn.fit([e], free, n_threads=1)
+    assert whole.rhs_evaluations > 0
+    # a cap above the fit's work changes nothing, bit for bit
+    roomy = idn.fit([e], free, n_threads=1, max_rhs_evaluations=whole.rhs_evaluations + 1)
+    assert np.array_equal(roomy.values, whole.values) and roomy.rhs_evaluations == whole.rhs_evaluations
+
+    def capped() -> int:
+        calls = []
+        with pytest.raises(idn.DeadlinePassed, match="work cap passed") as stop:
+            idn.fit([e], free, n_threads=1, progress=lambda *a: calls.append(a),
+                    max_rhs_evaluations=whole.rhs_evaluations // 2)
+        assert stop.value.clock == "work"
+        return len(calls)
+
+    quiet = capped()
+    assert 0 < quiet < whole.iterations
+    # the same capped fit with two threads burning CPU beside it stops after the same iterations
+    stop_burning = threading.Event()
+
+    def burn():
+        x = 0.0
+        while not stop_burning.is_set():
+            x = math.sin(x + 1.0)
+
+    burners = [threading.Thread(target=burn) for _ in range(2)]
+    for b in burners:
+        b.start()
+    try:
+        busy = capped()
+    finally:
+        stop_burning.set()
+        for b in burners:
+            b.join()
+    assert busy == quiet
 
 
 # ---- Broyden updates between finite-difference Jacobians; the fit's own counts -------------------

@@ -48,17 +48,24 @@ double get_parameter(const Setup &S, int index);
 // offset of a double field of tether_outputs for an output variable name; false if unknown
 bool output_offset(const char *name, std::size_t &offset);
 
-// Deadlines of a fit (kt_fit_options.deadline_*): a simulation checks them as it goes and fails
-// with the error below once one has passed; `hit` says which did (1 wall, 2 CPU), for the message.
+// Deadlines of a fit (kt_fit_options.deadline_*, max_rhs_evaluations): a simulation checks them as
+// it goes and fails with the error below once one has passed; `hit` says which did (1 wall, 2 CPU,
+// 3 work), for the message. Work is counted in evaluations of the model's equations, summed over the
+// fit's simulations: the same fit does the same work on a busy machine and an idle one.
 struct Limits {
     double monotonic = 0, cpu = 0; // clock readings in seconds, 0 = none
     double thread_cpu = 0;         // on the CPU clock of the thread that called kt_fit
     clockid_t thread_clock{};
+    double work_cap = 0;           // equation evaluations, 0 = none
+    mutable std::atomic<long long> work{0}; // of the simulations that have ended
     mutable std::atomic<int> hit{0};
-    bool any() const { return monotonic > 0 || cpu > 0 || thread_cpu > 0; }
-    bool expired() const;          // reads the clocks; sets hit
+    bool any() const { return monotonic > 0 || cpu > 0 || thread_cpu > 0 || work_cap > 0; }
+    bool expired(long long in_flight = 0) const; // reads the clocks and the work; sets hit
     std::string message() const;
 };
+
+// the equation evaluations of the last simulation on this thread (kt_last_simulation_work)
+extern thread_local long long last_simulation_work;
 
 // Where a record's input pieces join: at a sample, the new piece carries on the last one if it
 // starts where that one arrived, to `tolerance` of the record's largest |input| (of its largest

@@ -609,7 +609,8 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             }
             limits.thread_cpu = o.deadline_thread_cpu;
         }
-        if (limits.any()) P.limits = &limits;
+        limits.work_cap = o.max_rhs_evaluations > 0 ? o.max_rhs_evaluations : 0.0;
+        P.limits = &limits; // with no deadline and no cap, it only counts the fit's work
         P.rtol_override = o.rtol;
         P.exps.resize((std::size_t)n_exp);
         for (int i = 0; i < n_exp; ++i) {
@@ -802,6 +803,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         std::snprintf(res->report, sizeof res->report, "%s", report.c_str());
         res->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         res->cpu_seconds = 1e-9 * (double)(thread_cpu_ns() - cpu0 + helper_cpu_ns.load());
+        res->rhs_evaluations = limits.work.load();
         return best.status;
     } catch (const std::exception &ex) {
         err = std::string("kt_fit: ") + ex.what();

@@ -35,11 +35,14 @@ double kt_parameter_start(const char *name)
 
 const char *kt_last_error(void) { return kt::last_error.c_str(); }
 
+long long kt_last_simulation_work(void) { return kt::last_simulation_work; }
+
 int kt_simulate_outputs(const kt_experiment *e, int n_par, const char *const *names, const double *values, int n_out,
                         const char *const *outputs, double *out)
 {
     std::string &err = kt::last_error;
     err.clear();
+    kt::last_simulation_work = 0; // a call refused before it simulates does no work
     try {
         if (!e || !out) { err = "kt_simulate: experiment and out must not be NULL"; return -1; }
         kt::Prepared p;

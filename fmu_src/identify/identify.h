@@ -27,7 +27,7 @@ extern "C" {
 #define KT_API
 #endif
 
-#define KT_IDENTIFY_API_VERSION 8
+#define KT_IDENTIFY_API_VERSION 9
 
 /* ---- parameter table ------------------------------------------------------------------------ */
 #define KT_PAR_REAL 0   /* a Real parameter: a double field of tether_params */
@@ -96,6 +96,9 @@ KT_API int kt_simulate(const kt_experiment *e, int n_par, const char *const *nam
 KT_API int kt_simulate_outputs(const kt_experiment *e, int n_par, const char *const *names, const double *values,
                                int n_out, const char *const *outputs, double *out);
 KT_API const char *kt_last_error(void);
+/* The evaluations of the model's equations that the last kt_simulate or kt_simulate_outputs on this
+ * thread made (its work, the unit of kt_fit_options.max_rhs_evaluations). */
+KT_API long long kt_last_simulation_work(void);
 
 /* z of the Bouc-Wen law (n = 1) along the displacement path x[0..n-1] (physics/laws.h,
  * boucwen_path): the hysteretic force an equation-error estimate of (A, beta, gamma) needs.
@@ -174,6 +177,10 @@ typedef struct {
                                 fit: where it would (gradient or step small, a small decrease, no
                                 decrease), the finite-difference one is computed there and the
                                 iteration redone. 0 = a finite-difference Jacobian every iteration */
+    double max_rhs_evaluations; /* a cap on the fit's work (0 = none): the evaluations of the model's
+                                   equations summed over all its simulations. Stops the fit like a
+                                   deadline ("kt_fit: stopped: the work cap passed ..."), but the same
+                                   fit stops at the same point however busy the machine is */
 } kt_fit_options;
 
 KT_API void kt_fit_default_options(kt_fit_options *o);
@@ -208,6 +215,7 @@ typedef struct {
     double cpu_seconds;        /* CPU time of the fit: the calling thread's and its helper threads' */
     char message[256];         /* why it stopped */
     char report[4096];         /* the undetermined directions, named, one per line */
+    long long rhs_evaluations; /* the fit's work: evaluations of the model's equations, all simulations */
 } kt_fit_result;
 
 /* Fit the k parameters names[] (shared by all experiments) to the n_exp experiments jointly.

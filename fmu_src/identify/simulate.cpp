@@ -199,11 +199,28 @@ bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prep
     return true;
 }
 
+thread_local long long last_simulation_work = 0;
+
 namespace {
 
+// Frees the integrator, and books its work: as the thread's last simulation's, and to the fit's
+// limits (if any) on whatever path the simulation ends.
 struct IntegratorGuard {
     tether_integrator *I = nullptr;
-    ~IntegratorGuard() { integrator_free(I); }
+    const Limits *limits = nullptr;
+    long long work() const
+    {
+        if (!I) return 0;
+        integrator_stats st;
+        integrator_get_stats(I, &st);
+        return st.rhs_evaluations;
+    }
+    ~IntegratorGuard()
+    {
+        last_simulation_work = work();
+        if (limits) limits->work += last_simulation_work;
+        integrator_free(I);
+    }
 };
 
 // what an importer's fmi2SetReal(input) + fmi2SetRealInputDerivatives does (fmu.c): the value and
@@ -277,9 +294,10 @@ static double clock_seconds(clockid_t id)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-bool Limits::expired() const
+bool Limits::expired(long long in_flight) const
 {
     if (hit.load()) return true;
+    if (work_cap > 0 && (double)(work.load() + in_flight) > work_cap) { hit = 3; return true; }
     if (monotonic > 0 && clock_seconds(CLOCK_MONOTONIC) > monotonic) { hit = 1; return true; }
     if (cpu > 0 && clock_seconds(CLOCK_PROCESS_CPUTIME_ID) > cpu) { hit = 2; return true; }
     if (thread_cpu > 0 && clock_seconds(thread_clock) > thread_cpu) { hit = 2; return true; }
@@ -288,7 +306,11 @@ bool Limits::expired() const
 
 std::string Limits::message() const
 {
-    return hit.load() == 2 ? "stopped: the CPU-time deadline passed" : "stopped: the wall-time deadline passed";
+    switch (hit.load()) {
+    case 2: return "stopped: the CPU-time deadline passed";
+    case 3: return "stopped: the work cap passed (" + std::to_string((long long)work_cap) + " evaluations of the equations)";
+    default: return "stopped: the wall-time deadline passed";
+    }
 }
 
 // the physics of one experiment (simulate below adds the measured column's offset)
@@ -297,8 +319,10 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
 {
     // deadlines: read the clocks every few samples (a reading costs about a microsecond)
     unsigned long polls = 0;
+    IntegratorGuard G;
+    G.limits = p.limits;
     auto over_time = [&](unsigned every) -> bool {
-        if (!p.limits || (++polls % every) != 0 || !p.limits->expired()) return false;
+        if (!p.limits || (++polls % every) != 0 || !p.limits->expired(G.work())) return false;
         err = p.limits->message();
         return true;
     };
@@ -324,7 +348,6 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     if (tether_initialize(&M, t, y, msg, sizeof msg) != 0) { err = msg; return false; }
     tether_event_update(&M, t, y, msg, sizeof msg);
     tether_check_range(&M, t, y, msg, sizeof msg);
-    IntegratorGuard G;
     G.I = integrator_create(&M, nullptr, nullptr, msg, sizeof msg);
     if (!G.I) { err = msg; return false; }
     bool needs_reset = true;

@@ -38,6 +38,7 @@ struct tether_integrator {
     integrator_input_fn input; /* NULL: the model's inputs stay as set */
     void *input_ctx;
     long events, resets;
+    long steps_before, rhs_before; /* CVODE's counts of the runs before its last re-initialisation */
     long runaway_refusals; /* rhs calls refused as a runaway within this advance */
     char error[512];
 };
@@ -137,11 +138,22 @@ void integrator_free(tether_integrator *I)
     free(I);
 }
 
+/* CVodeReInit zeroes CVODE's counters: keep what they held */
+static void bank_counts(tether_integrator *I)
+{
+    long int nst = 0, nfe = 0;
+    CVodeGetNumSteps(I->cvode, &nst);
+    CVodeGetNumRhsEvals(I->cvode, &nfe);
+    I->steps_before += nst;
+    I->rhs_before += nfe;
+}
+
 int integrator_reset(tether_integrator *I, double t, const double *y)
 {
     memcpy(NV_DATA_S(I->y), y, sizeof(double) * N_STATES);
     I->t = t;
     I->resets += 1;
+    bank_counts(I);
     if (CVodeReInit(I->cvode, t, I->y) != CV_SUCCESS) return -1;
     return 0;
 }
@@ -193,6 +205,7 @@ int integrator_advance_within(tether_integrator *I, double t_end, double t_stop,
                              "before t = %.17g s (chattering)", MAX_EVENTS_PER_ADVANCE, (double)tret, t_end);
                     break;
                 }
+                bank_counts(I);
                 if (CVodeReInit(I->cvode, tret, I->y) != CV_SUCCESS) break;
                 I->resets += 1;
             }
@@ -224,8 +237,8 @@ void integrator_get_stats(const tether_integrator *I, integrator_stats *s)
     long int nst = 0, nfe = 0;
     CVodeGetNumSteps(I->cvode, &nst);
     CVodeGetNumRhsEvals(I->cvode, &nfe);
-    s->steps = nst;
-    s->rhs_evaluations = nfe;
+    s->steps = I->steps_before + nst;
+    s->rhs_evaluations = I->rhs_before + nfe;
     s->events = I->events;
     s->resets = I->resets;
 }

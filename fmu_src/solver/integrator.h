@@ -50,7 +50,8 @@ void integrator_set_input(tether_integrator *I, integrator_input_fn input, void 
 
 const char *integrator_error(const tether_integrator *I);
 
-/* Work counters, for benchmarks and logs. */
+/* Work counters since the integrator was created (over all its resets): for benchmarks, logs and
+ * the identification engine's work cap. */
 typedef struct {
     long steps, rhs_evaluations, events, resets;
 } integrator_stats;

@@ -16,6 +16,7 @@ else the one installed inside the package; else ``<repo>/build/fmu_src/identify/
 from __future__ import annotations
 
 import ctypes as C
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -27,7 +28,7 @@ __all__ = ["Experiment", "FitResult", "MEASUREMENT_DEFAULTS", "PROGRESS", "exper
 
 INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
 #: the engine's KT_IDENTIFY_API_VERSION this binding is written for
-API_VERSION = 8
+API_VERSION = 9
 #: parameter kinds of the engine's table (identify.h KT_PAR_*)
 KIND_REAL, KIND_SWITCH, KIND_INPUT, KIND_MEASUREMENT = 0, 1, 2, 3
 #: the measurement parameters of an experiment (identify.h KT_PAR_MEASUREMENT) and their defaults:
@@ -63,7 +64,7 @@ class _Options(C.Structure):
         ("output_stride", C.c_int), ("horizon_stages", C.c_int), ("verbose", C.c_int),
         ("progress", C.c_void_p), ("progress_ctx", C.c_void_p),
         ("deadline_monotonic", C.c_double), ("deadline_cpu", C.c_double), ("deadline_thread_cpu", C.c_double),
-        ("continuous_input", C.c_int), ("broyden_updates", C.c_int),
+        ("continuous_input", C.c_int), ("broyden_updates", C.c_int), ("max_rhs_evaluations", C.c_double),
     ]
 
 
@@ -81,7 +82,7 @@ class _Result(C.Structure):
         ("n_residuals", C.c_int), ("dof", C.c_int), ("evaluations", C.c_int),
         ("jacobian_evaluations", C.c_int), ("iterations", C.c_int),
         ("best_start", C.c_int), ("status", C.c_int), ("seconds", C.c_double), ("cpu_seconds", C.c_double),
-        ("message", C.c_char * 256), ("report", C.c_char * 4096),
+        ("message", C.c_char * 256), ("report", C.c_char * 4096), ("rhs_evaluations", C.c_longlong),
     ]
 
 
@@ -116,6 +117,7 @@ def library() -> C.CDLL:
     lib.kt_parameter_start.restype = C.c_double
     lib.kt_parameter_start.argtypes = [C.c_char_p]
     lib.kt_last_error.restype = C.c_char_p
+    lib.kt_last_simulation_work.restype = C.c_longlong
     lib.kt_simulate_outputs.argtypes = [C.POINTER(_Experiment), C.c_int, C.POINTER(C.c_char_p), _DP, C.c_int,
                                         C.POINTER(C.c_char_p), _DP]
     lib.kt_fit_default_options.argtypes = [C.POINTER(_Options)]
@@ -290,9 +292,20 @@ def simulate(exp: Experiment, params: Mapping[str, float] | None = None,
     out = np.empty((len(exp.time), len(outs)))
     rc = lib.kt_simulate_outputs(C.byref(s), len(names), _names(names), _dbl(vals), len(outs), _names(outs),
                                  _dbl(out))
+    _work.done = simulation_work() + int(lib.kt_last_simulation_work())
     if rc != 0:
         raise RuntimeError("kt_simulate: " + lib.kt_last_error().decode())
     return out[:, 0] if outputs is None else out
+
+
+_work = threading.local()
+
+
+def simulation_work() -> int:
+    """The evaluations of the model's equations that this thread's :func:`simulate` calls have made
+    so far: the unit of the fit option ``max_rhs_evaluations``, a cap on a fit's work that, unlike a
+    CPU-time deadline, stops the same fit at the same point however busy the machine is."""
+    return getattr(_work, "done", 0)
 
 
 @dataclass
@@ -326,13 +339,17 @@ class FitResult:
     jacobian_evaluations: int = 0
     #: CPU seconds of the fit (the calling thread's and the engine's helper threads')
     cpu_seconds: float = 0.0
+    #: the fit's work: evaluations of the model's equations over all its simulations (the unit of
+    #: the option max_rhs_evaluations)
+    rhs_evaluations: int = 0
 
     def as_dict(self) -> dict[str, float]:
         return dict(zip(self.names, map(float, self.values)))
 
 
 class DeadlinePassed(RuntimeError):
-    """A fit stopped at one of its deadlines (see :func:`deadlines`); ``clock`` is "wall" or "cpu"."""
+    """A fit stopped at one of its deadlines (see :func:`deadlines`) or its work cap;
+    ``clock`` is "wall", "cpu" or "work"."""
 
     def __init__(self, message: str, clock: str):
         super().__init__(message)
@@ -368,7 +385,8 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
     deadline_cpu and deadline_thread_cpu (readings of time.CLOCK_MONOTONIC,
     time.CLOCK_PROCESS_CPUTIME_ID and the calling thread's time.CLOCK_THREAD_CPUTIME_ID, see
     :func:`deadlines`; the fit raises DeadlinePassed, a RuntimeError "kt_fit: stopped: the ...
-    deadline passed", once one passes, even inside an iteration), and
+    deadline passed", once one passes, even inside an iteration), max_rhs_evaluations (a cap on
+    the fit's work, see :func:`simulation_work`; DeadlinePassed with clock "work"), and
     ``progress``: a callable f(start, stage, n_stages, iteration, cost, evaluations) called after
     every LM iteration; a true return value stops the fit (RuntimeError), an exception it raises
     stops the fit and is raised again here."""
@@ -421,8 +439,9 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
         msg = "kt_fit: " + lib.kt_last_error().decode().removeprefix("kt_fit: ")
         # the engine's messages of a passed deadline (Limits::message in simulate.cpp)
         for clock, text in (("wall", "stopped: the wall-time deadline passed"),
-                            ("cpu", "stopped: the CPU-time deadline passed")):
-            if msg.endswith(text):
+                            ("cpu", "stopped: the CPU-time deadline passed"),
+                            ("work", "stopped: the work cap passed")):
+            if text in msg:
                 raise DeadlinePassed(msg, clock)
         raise RuntimeError(msg)
     return FitResult(
@@ -432,4 +451,5 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
         cost_history=hist[:r.cost_history_length].copy(), cost=r.cost, rms=r.rms, sigma2=r.sigma2,
         condition=r.condition, n_residuals=r.n_residuals, dof=r.dof, evaluations=r.evaluations,
         iterations=r.iterations, best_start=r.best_start, status=r.status, message=r.message.decode(),
-        seconds=r.seconds, jacobian_evaluations=r.jacobian_evaluations, cpu_seconds=r.cpu_seconds)
+        seconds=r.seconds, jacobian_evaluations=r.jacobian_evaluations, cpu_seconds=r.cpu_seconds,
+        rhs_evaluations=int(r.rhs_evaluations))
