@@ -31,7 +31,8 @@ a longer run) and scores, beside the above, whether each nuisance value discover
 (its report's `nuisance` section) lies within its interval.
 
 Results per trace are cached in DIR (default /tmp/discovery_eval_<n>_<seed>): a rerun only does
-what is missing; delete DIR to start over.
+what is missing; delete DIR to start over. Beside each NAME.result.json, NAME.discovery.json is the
+discovery's whole OUT.json (its steps, verdicts and refinements): where a record is missed, why.
 """
 from __future__ import annotations
 
@@ -81,6 +82,7 @@ def _one(job):
     try:
         d = D.discover(trace, **DISCOVER_OPTIONS)
         doc = D.discovery_document(d)
+        _write_json(Path(outdir) / f"{name}.discovery.json", doc)   # the step account, to read a miss afterwards
         row = {"name": name, "experiment": trace.experiment, "hidden": sorted(tr.revealed),
                "named": doc["added_effects"], "final_model": doc["final_model"],
                "rmse_initial": doc["rmse_initial"], "rmse_final": doc["rmse_final"],
@@ -93,10 +95,15 @@ def _one(job):
         row = {"name": name, "experiment": trace.experiment, "hidden": sorted(tr.revealed), "named": None,
                "error": f"{type(e).__name__}: {e}", "seconds": time.perf_counter() - t0,
                "noise_true": tr.meta["hidden"]["noise_sigma_m"], "samples": len(trace.time)}
-    tmp = dest.with_suffix(".tmp")
-    tmp.write_text(json.dumps(row, indent=1))
-    os.replace(tmp, dest)
+    _write_json(dest, row)
     return row
+
+
+def _write_json(dest: Path, doc: dict) -> None:
+    """Whole or not at all: a run stopped midway leaves no half-written file to be read as a result."""
+    tmp = dest.with_suffix(".tmp")
+    tmp.write_text(json.dumps(doc, indent=1))
+    os.replace(tmp, dest)
 
 
 def _one_file(name, stem: Path, dest: Path) -> dict:
@@ -113,15 +120,14 @@ def _one_file(name, stem: Path, dest: Path) -> dict:
     t0 = time.perf_counter()
     try:
         doc = D.discovery_document(D.discover(trace))
+        _write_json(dest.with_name(f"{name}.discovery.json"), doc)
         row = {**base, "named": doc["added_effects"], "final_model": doc["final_model"],
                "rmse_initial": doc["rmse_initial"], "rmse_final": doc["rmse_final"],
                "noise_estimate": doc["noise_estimate"], "removed": [r["effect"] for r in doc["removed"]]}
     except Exception as e:  # noqa: BLE001 - a failure is a result of the evaluation
         row = {**base, "named": None, "error": f"{type(e).__name__}: {e}"}
     row["seconds"] = time.perf_counter() - t0
-    tmp = dest.with_suffix(".tmp")
-    tmp.write_text(json.dumps(row, indent=1))
-    os.replace(tmp, dest)
+    _write_json(dest, row)
     return row
 
 
