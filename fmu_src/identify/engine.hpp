@@ -59,7 +59,6 @@ struct Limits {
     double work_cap = 0;           // equation evaluations, 0 = none
     mutable std::atomic<long long> work{0}; // of the simulations that have ended
     mutable std::atomic<int> hit{0};
-    bool any() const { return monotonic > 0 || cpu > 0 || thread_cpu > 0 || work_cap > 0; }
     bool expired(long long in_flight = 0) const; // reads the clocks and the work; sets hit
     std::string message() const;
 };

@@ -322,7 +322,9 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     IntegratorGuard G;
     G.limits = p.limits;
     auto over_time = [&](unsigned every) -> bool {
-        if (!p.limits || (++polls % every) != 0 || !p.limits->expired(G.work())) return false;
+        if (!p.limits || (++polls % every) != 0) return false;
+        // the simulation's own work so far counts only against a work cap (its integrator's counters)
+        if (!p.limits->expired(p.limits->work_cap > 0 ? G.work() : 0)) return false;
         err = p.limits->message();
         return true;
     };

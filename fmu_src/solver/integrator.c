@@ -138,12 +138,21 @@ void integrator_free(tether_integrator *I)
     free(I);
 }
 
-/* CVodeReInit zeroes CVODE's counters: keep what they held */
-static void bank_counts(tether_integrator *I)
+/* CVODE's step and right-hand-side counts since its last (re-)initialisation */
+static void cvode_counts(const tether_integrator *I, long *steps, long *rhs_evaluations)
 {
     long int nst = 0, nfe = 0;
     CVodeGetNumSteps(I->cvode, &nst);
     CVodeGetNumRhsEvals(I->cvode, &nfe);
+    *steps = nst;
+    *rhs_evaluations = nfe;
+}
+
+/* CVodeReInit zeroes CVODE's counters: keep what they held */
+static void bank_counts(tether_integrator *I)
+{
+    long nst, nfe;
+    cvode_counts(I, &nst, &nfe);
     I->steps_before += nst;
     I->rhs_before += nfe;
 }
@@ -234,9 +243,8 @@ const char *integrator_error(const tether_integrator *I) { return I->error; }
 
 void integrator_get_stats(const tether_integrator *I, integrator_stats *s)
 {
-    long int nst = 0, nfe = 0;
-    CVodeGetNumSteps(I->cvode, &nst);
-    CVodeGetNumRhsEvals(I->cvode, &nfe);
+    long nst, nfe;
+    cvode_counts(I, &nst, &nfe);
     s->steps = I->steps_before + nst;
     s->rhs_evaluations = I->rhs_before + nfe;
     s->events = I->events;
