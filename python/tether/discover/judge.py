@@ -318,10 +318,13 @@ def _law_judged(rms_before: float, rms: float, bic: float, held_before: float, h
     if asked and not held <= held_before:
         return False, (f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC {bic:+.0f}, but the "
                        f"held-out part gets worse: {held_before / sigma:.2f} -> {held / sigma:.2f} x noise")
-    why = ("" if asked else
-           f" (not judged on it: the gap above the noise shrinks from {_gap(rms_before, sigma) / sigma:.2f} to "
-           f"{_gap(rms, sigma) / sigma:.2f} sigma)" if _shape_shrinks_gap(rms_before, rms, sigma) else
-           f" (not judged on it: the model predicts the held-out part {held_before / rms_before:.0f} "
-           f"times worse than it fits the whole record)")
+    if asked:
+        why = ""
+    elif _shape_shrinks_gap(rms_before, rms, sigma):
+        why = (f" (not judged on it: the gap above the noise shrinks from {_gap(rms_before, sigma) / sigma:.2f} to "
+               f"{_gap(rms, sigma) / sigma:.2f} sigma)")
+    else:
+        why = (f" (not judged on it: the model predicts the held-out part {held_before / rms_before:.0f} "
+               f"times worse than it fits the whole record)")
     return True, (f"RMS error {rms_before / sigma:.2f} -> {rms / sigma:.2f} x noise, BIC {bic:+.0f}, held-out "
                   f"{held_before / sigma:.2f} -> {held / sigma:.2f} x noise" + why)
