@@ -77,7 +77,7 @@ def _run(root: str, out: str, N: int) -> None:
             g -= t["shape_gain"] * u("shape", k)
         return max(g, 0.0)
 
-    def fake_fit(trace, spec, effects, starts_, sc, quick_iterations=12, time_cap=None, extra=(), held=(),
+    def fake_fit(trace, spec, effects, starts_, sc, quick_iterations=12, work_cap=None, extra=(), held=(),
                  own_thread=False, baseline_rms=None, nuisance=(), **options):
         spec = spec.for_experiment(trace.experiment)
         names = laws.free_parameters(spec, trace.experiment)
@@ -87,7 +87,7 @@ def _run(root: str, out: str, N: int) -> None:
         summary = sorted((k, float("%.6g" % v)) for k, v in start.items() if isinstance(v, (int, float)))
         key = (spec.canonical, tuple(effects), tuple(extra), tuple(held), len(trace.time), len(starts_),
                [s is None for s in starts_], summary)
-        LOG.append([repr(key), repr(time_cap), repr(baseline_rms), repr(sorted(options.items()))])
+        LOG.append([repr(key), repr(work_cap), repr(baseline_rms), repr(sorted(options.items()))])
         if u("fail", repr(key)) < 0.03:
             return ModelFit(spec=spec, effects=tuple(effects), params={}, free=names, rms=float("inf"),
                             predicted=np.full(len(trace.time), np.nan), ok=False, message="fake failure")
@@ -115,7 +115,7 @@ def _run(root: str, out: str, N: int) -> None:
     search.fit_model = fake_fit
     search.predict = lambda tr, sp, p: np.zeros(len(tr.time))
     judge.predict = lambda tr, sp, p: np.full(len(tr.time), 1.0)
-    search._simulation_seconds = lambda tr, m: 0.001
+    search._simulation_work = lambda tr, m: 1000
     search.regimes = lambda tr, fit, *a: {"slack": np.zeros(len(tr.time), bool)}
     search.disagreement = lambda *a, **k: []
     search.regime_table = lambda *a, **k: {}

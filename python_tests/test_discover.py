@@ -422,7 +422,7 @@ def test_a_finer_iwan_bank_follows_friction_spread_over_more_elements(tmp_path):
     tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
     spec = parse_model("linear+iwan", "free_vibration")
 
-    def fit(t, sp, eff, starts, extra=(), cap_factor=1.0):      # no time cap here to scale
+    def fit(t, sp, eff, starts, extra=(), cap_factor=1.0):      # no work cap here to scale
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra)
 
     est = D.fit_model(tr, spec, ("hysteresis",), [None], sc)

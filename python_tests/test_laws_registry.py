@@ -206,9 +206,9 @@ def test_the_reseed_stage_asks_the_registry_for_the_named_laws_moves():
     assert kaw.effects == ["nonlinear_stiffness", "hysteresis"] and named(kaw) == []
 
 
-def test_a_shape_refinement_gets_the_time_cap_of_a_fit_extending_the_current_model(free_vibration, monkeypatch):
-    """The time caps count simulations of the start model; a model with an Iwan bank and a table of
-    c(x) simulates several times slower and has many more parameters, so its shape fits need a cap
+def test_a_shape_refinement_gets_the_work_cap_of_a_fit_extending_the_current_model(free_vibration, monkeypatch):
+    """The work caps count simulations of the start model; a model with an Iwan bank and a table of
+    c(x) simulates slower and has many more parameters, so its shape fits need a cap
     as large as a step's candidates extending it get (Search.extension_cap_factor), and so do the
     fits of the first part that the held-out test asks. With the start model's cap, the table of
     c(x) beside a bank was abandoned after 2 s of CPU on a free vibration of the nuisance family
@@ -221,8 +221,8 @@ def test_a_shape_refinement_gets_the_time_cap_of_a_fit_extending_the_current_mod
     assert cur.ok and cur.rms > 2.0 * s.sigma
     s.cur = cur
     caps = []
-    monkeypatch.setattr(search, "fit_model", lambda tr_, sp, eff, st, *a, time_cap=None, **kw: caps.append(
-        time_cap / s.fit_cap) or _failed_fit(tr_, sp, eff, st))
+    monkeypatch.setattr(search, "fit_model", lambda tr_, sp, eff, st, *a, work_cap=None, **kw: caps.append(
+        work_cap / s.fit_cap) or _failed_fit(tr_, sp, eff, st))
     monkeypatch.setattr(s, "extension_cap_factor", lambda m: 7.5 if m is cur else 1.0)
     s.reshape(set())
     assert caps and all(c == 7.5 for c in caps), caps
@@ -233,7 +233,7 @@ def test_a_shape_refinement_gets_the_time_cap_of_a_fit_extending_the_current_mod
     assert caps == [7.5, 7.5], caps
 
 
-def test_the_rival_and_wider_laws_get_the_time_cap_of_a_fit_extending_the_current_model(free_vibration,
+def test_the_rival_and_wider_laws_get_the_work_cap_of_a_fit_extending_the_current_model(free_vibration,
                                                                                         monkeypatch):
     """The last stages fit the current model with another law in place: their caps are those of a
     fit extending it (times rival_law's own factor), not the start model's (Bouc-Wen's rival, the

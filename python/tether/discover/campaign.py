@@ -43,7 +43,7 @@ from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, ModelSpec, parse
 from ..noise import estimate_noise
 from ..traces import Trace
 from .document import ordinal
-from .fitting import DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict
+from .fitting import CAP_SIMULATIONS, DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict
 from .judge import CRITERIA, _gap, _law_judged, bic_change, full_data_verdict
 from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _with_law, _without, candidates,
                    free_parameters)
@@ -153,9 +153,9 @@ class Campaign(Steps, Contradictions):
                            ok=all(math.isfinite(e) for e in rms))
 
     def engine_fit(self, traces: list, spec: ModelSpec, names: list, start: dict | None, fixed: dict,
-                   max_iterations: int, time_cap: float | None, own_thread: bool):
+                   max_iterations: int, work_cap: float | None, own_thread: bool):
         """One tether.fit.fit_traces run on baked records; (result or None, message). A fit past its
-        CPU cap or the budget's deadline is abandoned (fitting._fit_once's rule)."""
+        work cap or the budget's deadline is abandoned (fitting._fit_once's rule)."""
         from ..fit import fit_traces
 
         options = dict(ENGINE_OPTIONS)
@@ -164,16 +164,16 @@ class Campaign(Steps, Contradictions):
         if self.deadline is not None and time.perf_counter() >= self.deadline:
             self.budget_hit = True
             return None, "stopped: the discovery's time budget is spent"
-        options.update(idn.deadlines(wall_seconds=None if self.deadline is None else self.deadline - time.perf_counter(),
-                                     cpu_seconds=None if own_thread else time_cap,
-                                     thread_cpu_seconds=time_cap if own_thread else None))
+        options.update(idn.deadlines(wall_seconds=None if self.deadline is None else self.deadline - time.perf_counter()))
+        if work_cap is not None:
+            options["max_rhs_evaluations"] = float(work_cap)
         try:
             return fit_traces(traces, spec, free=names, start=start, fixed=fixed or None,
                               max_iterations=max_iterations, **options), ""
         except idn.DeadlinePassed as exc:
             if exc.clock == "wall":
                 self.budget_hit = True
-            return None, "stopped: the time budget is spent" if exc.clock == "wall" else "abandoned at its time cap"
+            return None, "stopped: the time budget is spent" if exc.clock == "wall" else "abandoned at its work cap"
         except (RuntimeError, ValueError) as exc:
             return None, " ".join(str(exc).split())
 
@@ -183,7 +183,7 @@ class Campaign(Steps, Contradictions):
         """The shared law of ``spec`` fitted to every record (or every record's first part), each
         record's nuisance held at ``nzs`` (or, start by start, at ``start_nzs``: the nuisance values
         that go with each start); from each start a few iterations where there are several, the best
-        carried on. The time caps are the search's times ``cap_factor`` (a model that simulates
+        carried on. The work caps are the search's times ``cap_factor`` (a model that simulates
         slower). The result is evaluated on the whole records (CampaignFit)."""
         t0 = time.perf_counter()
         nzs = [dict(r.nz) for r in self.records] if nzs is None else nzs
@@ -270,13 +270,13 @@ class Campaign(Steps, Contradictions):
         at its current values: the lead's law may suit the lead alone, and a joint fit from it
         ended above the model it extends, a campaign of seed 1000's creep); where the lead's fit
         fails, from the current law and from the campaign's data-based estimate. Then once the
-        records' nuisance refitted and the law again. The time caps are the search's times
+        records' nuisance refitted and the law again. The work caps are the search's times
         ``cap_factor`` (cap_factor_for)."""
         t0 = time.perf_counter()
         r = self.records[lead]
         cap = None if self.cap is None else self.cap * cap_factor
         alone = fit_model(r.trace, spec.for_experiment(r.trace.experiment), effects, starts, r.sc,
-                          nuisance=r.nuisance, time_cap=cap, own_thread=own_thread, deadline=self.deadline)
+                          nuisance=r.nuisance, work_cap=cap, own_thread=own_thread, deadline=self.deadline)
         nzs = [dict(x.nz) for x in self.records]
         if alone.ok:
             lead_law = _law_only(alone.params, spec)
@@ -304,15 +304,20 @@ class Campaign(Steps, Contradictions):
                          cap_factor=cap_factor)
         return refit if refit.ok and refit.rms < moved.rms else moved
 
+    def simulation_work(self, spec: ModelSpec, effects, params: dict, free, nzs: list) -> int:
+        """The work of one simulation of the campaign (every record) in evaluations of the model's
+        equations: the unit of the work caps."""
+        before = idn.simulation_work()
+        self.evaluate(spec, effects, params, free, nzs)
+        return idn.simulation_work() - before
+
     def cap_factor_for(self, m: CampaignFit) -> float:
-        """The time cap for fits that extend ``m``, as a multiple of the search's (counted in
+        """The work cap for fits that extend ``m``, as a multiple of the search's (counted in
         simulations of the campaign with the start model): one simulation of ``m`` over the
         campaign against one of the start model, times the ratio of the free parameters (each
         Jacobian needs one simulation per parameter), at least 1 (Search.extension_cap_factor's
         rule; without it, the fits of a campaign with an Iwan bank were abandoned at the cap)."""
-        t = time.process_time()
-        self.evaluate(m.spec, m.effects, m.params, m.free, m.nz)
-        per_simulation = (time.process_time() - t) / max(self.t_sim_start, 1e-9)
+        per_simulation = self.simulation_work(m.spec, m.effects, m.params, m.free, m.nz) / max(self.w_sim_start, 1)
         return max(1.0, per_simulation) * max(1.0, (m.n_free + 1) / (self.n_free_start + 1))
 
     def settle(self, m: CampaignFit) -> CampaignFit:
@@ -536,7 +541,7 @@ class Campaign(Steps, Contradictions):
     def fit_start(self) -> None:
         """Each record's start model alone (its nuisance values from the data, as the one-record
         search starts), then the shared law fitted to all records from each record's values, the
-        best settled; the time cap of the search's fits: 2000 simulations of the campaign."""
+        best settled; the work cap of the search's fits: CAP_SIMULATIONS simulations of the campaign."""
         self.say(f"fitting the start model {self.spec.canonical} to each record alone")
         starts: list = [None]
         for r in self.records:
@@ -550,10 +555,9 @@ class Campaign(Steps, Contradictions):
             r.alone = {"law": dict(alone.law_params), "nz": dict(alone.nuisance)}
             starts.append(alone.law_params)
             self.say(f"  {r.name} alone: RMS error {alone.rms / r.sigma:.2f} x noise")
-        t = time.process_time()
-        self.evaluate(self.spec, self.base_effects, starts[1], self.law_names(self.spec), [r.nz for r in self.records])
-        self.t_sim_start = time.process_time() - t
-        self.cap = max(5.0, 2000.0 * self.t_sim_start)
+        self.w_sim_start = self.simulation_work(self.spec, self.base_effects, starts[1], self.law_names(self.spec),
+                                                [r.nz for r in self.records])
+        self.cap = CAP_SIMULATIONS * self.w_sim_start
         self.say(f"fitting the start model {self.spec.canonical} to the {len(self.records)} records jointly")
         cur = self.fit(self.spec, self.base_effects, starts)
         if not cur.ok:

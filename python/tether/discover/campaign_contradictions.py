@@ -37,7 +37,7 @@ class Contradictions:
         cur, r = self.cur, self.records[i]
         spec = cur.spec.for_experiment(r.trace.experiment)
         own = fit_model(r.trace, spec, cur.effects, [{**cur.params, **cur.nz[i]}, None], r.sc,
-                        nuisance=r.nuisance, time_cap=self.cap)
+                        nuisance=r.nuisance, work_cap=self.cap)
         if not own.ok:
             return None, False, f"its own fit failed: {own.message}"
         dk = len([n for n in own.free if n not in NZ.NUISANCE])

@@ -1,5 +1,5 @@
 """Fits of one model to one record, through tether.fit (the project's fitting layer): the start
-cleaned, the time caps and the budget's deadline passed to the engine, several starts side by side."""
+cleaned, the work caps and the budget's deadline passed to the engine, several starts side by side."""
 
 from __future__ import annotations
 
@@ -112,16 +112,16 @@ def _held_nuisance(start: dict | None, names: Sequence[str]) -> dict:
     return {k: float(start[k]) for k in NZ.NUISANCE if start and k in start and k not in names}
 
 
-def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, deadline: float | None = None,
+def _fit_once(trace, spec, names, start, sc, work_cap: float | None = None, deadline: float | None = None,
               own_thread: bool = False, **options):
     """One fit through tether.fit.fit_traces; on a failure of its staging (a log-scaled parameter
     driven to 0 by the first stage) one direct engine fit of all free parameters instead. A fit
-    that runs past ``time_cap`` seconds of this process's CPU time (a start that wandered where the
-    equations turn stiff and every simulation crawls; CPU time, so that other work on the machine
-    does not change which fits finish), or past the discovery's ``deadline`` (a time.perf_counter()
-    value, wall time: the user's budget), is abandoned: the engine checks both inside its
-    simulations, so neither is overrun by more than a few samples' work. own_thread: the fit runs
-    beside others, on this thread alone (n_threads 1), and the cap counts this thread's CPU time."""
+    whose simulations make more than ``work_cap`` evaluations of the model's equations (a start that
+    wandered where the equations turn stiff and every simulation crawls; counted in work, not CPU
+    time, so that the same fit stops at the same point however busy the machine is), or that runs
+    past the discovery's ``deadline`` (a time.perf_counter() value, wall time: the user's budget), is
+    abandoned: the engine checks both inside its simulations, so neither is overrun by more than a
+    few samples' work. own_thread: the fit runs beside others, on this thread alone (n_threads 1)."""
     from .. import identify_native as idn
     from ..fit import fit_traces
 
@@ -134,12 +134,12 @@ def _fit_once(trace, spec, names, start, sc, time_cap: float | None = None, dead
         return None, OUT_OF_BUDGET
     if own_thread:
         options["n_threads"] = 1
-    options.update(idn.deadlines(wall_seconds=None if deadline is None else deadline - time.perf_counter(),
-                                 cpu_seconds=None if own_thread else time_cap,
-                                 thread_cpu_seconds=time_cap if own_thread else None))
+    options.update(idn.deadlines(wall_seconds=None if deadline is None else deadline - time.perf_counter()))
+    if work_cap is not None:
+        options["max_rhs_evaluations"] = float(work_cap)
 
     def stopped(exc: idn.DeadlinePassed) -> str:
-        return OUT_OF_BUDGET if exc.clock == "wall" else f"abandoned after {time_cap:.0f} s"
+        return OUT_OF_BUDGET if exc.clock == "wall" else f"abandoned at its work cap ({work_cap:.3g} evaluations)"
 
     iterations = int(options.pop("max_iterations", 100))
     while True:
@@ -190,7 +190,7 @@ ENGINE_OPTIONS: dict = {"central_differences": FORWARD}
 #: independent fits run this many side by side, each on one thread: the candidates of a step, or
 #: (one candidate alone) the short fits from several starts. The engine's parallel Jacobian keeps
 #: a second core only ~30 % busy (its trial steps are serial). The results are the same bit for
-#: bit, and each fit's time cap counts its own thread's CPU time
+#: bit, and each fit's work cap counts its own simulations
 PARALLEL_FITS = 2
 
 
@@ -249,6 +249,14 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
                                                    zip(r.names, r.ci_low, r.ci_high)})
 
 
+#: every fit of a discovery is capped at this many simulations of the model it starts from, counted
+#: in work (evaluations of the equations: the same on a busy machine as on an idle one). Until
+#: 2026-11-27 the caps were 2000 x the CPU time of one simulation, timed once, which came to 1273-2831
+#: steady simulations (median 2206, upper quartile ~2400) over 14 runs on five tuning records; the
+#: upper quartile keeps the fits those caps let finish in most runs (docs/discovery.md, "Work caps")
+CAP_SIMULATIONS = 2400.0
+
+
 #: the second search (from the refined model) caps its fits at this share of the first's: it starts
 #: within a few sigma of the record, where a candidate that earns its place converges in a few
 #: iterations, and the fits that run to the cap there crawl to nothing (a free vibration with
@@ -257,12 +265,12 @@ SECOND_SEARCH_CAP_SHARE = 0.5
 
 
 #: a quick fit (quick_iterations from one of several starts) is abandoned at this share of the
-#: time cap: twelve iterations that need half the cap crawl through equations turned stiff
+#: work cap: twelve iterations that need half the cap crawl through equations turned stiff
 QUICK_CAP_SHARE = 0.5
 
 
 def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Sequence[dict | None], sc: _Scales,
-              quick_iterations: int = 12, time_cap: float | None = None, extra: Sequence[str] = (),
+              quick_iterations: int = 12, work_cap: float | None = None, extra: Sequence[str] = (),
               held: Sequence[str] = (), own_thread: bool = False, baseline_rms: float | None = None,
               nuisance: Sequence[str] = (), **options) -> ModelFit:
     """Fit ``spec`` from each start (a few iterations each when there are several; None = tether.fit's
@@ -285,9 +293,9 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     evaluations = 0
     best, best_i, msg = None, -1, ""
     if len(starts) > 1:
-        quick_cap = None if time_cap is None else QUICK_CAP_SHARE * time_cap
+        quick_cap = None if work_cap is None else QUICK_CAP_SHARE * work_cap
         quick_fits = _side_by_side(
-            lambda s, alone: _fit_once(trace, spec, names, s, sc, time_cap=quick_cap, max_iterations=quick_iterations,
+            lambda s, alone: _fit_once(trace, spec, names, s, sc, work_cap=quick_cap, max_iterations=quick_iterations,
                                        own_thread=alone, **options), starts, nested=own_thread)
         for i, (r, m) in enumerate(quick_fits):
             if r is None:
@@ -302,17 +310,17 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
             # iteration budget (restarting from the quick fit's end resets the staging and the
             # step control, and can settle elsewhere: a creep fit went 1.18 -> 1.76 x noise that
             # way); the restart from the quick fit's end only where the full run fails or is worse
-            cap2 = None if time_cap is None else 2 * time_cap
+            cap2 = None if work_cap is None else 2 * work_cap
             tries = [starts[best_i], dict(best.values)]
             for s in tries:
-                r, m = _fit_once(trace, spec, names, s, sc, time_cap=cap2, own_thread=own_thread, **options)
+                r, m = _fit_once(trace, spec, names, s, sc, work_cap=cap2, own_thread=own_thread, **options)
                 if r is not None:
                     evaluations += r.evaluations
                     if r.rms <= best.rms:
                         best = r
                         break
     else:
-        best, msg = _fit_once(trace, spec, names, starts[0], sc, time_cap=None if time_cap is None else 2 * time_cap,
+        best, msg = _fit_once(trace, spec, names, starts[0], sc, work_cap=None if work_cap is None else 2 * work_cap,
                               own_thread=own_thread, **options)
         best_i = 0
         evaluations += best.evaluations if best is not None else 0

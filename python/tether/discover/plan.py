@@ -38,7 +38,7 @@ PLAN = (
           "_shape_judged"),
     Stage("effects again", "a shape was kept and the refined model misses the record by CRITERIA.unexplained_gap "
           "or more", lambda s: s.search_again, "search_effects_again",
-          "the search for effects once more from the refined model, its shape terms free (a shorter time cap)",
+          "the search for effects once more from the refined model, its shape terms free (a shorter work cap)",
           "as in the first search"),
     Stage("shapes again", "the second search ran, the budget is not spent, and the second search named an effect "
           "or a named law has shapes not yet refined", lambda s: s.search_again and not s.budget_hit and (

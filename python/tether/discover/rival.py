@@ -18,7 +18,7 @@ from .laws import _law_of, _with_law, RIVAL_LAWS, SHAPE_TERMS, WIDER_LAWS
 from .records import Refinement
 
 
-#: the time cap of the rival law's fits, as a multiple of the search's, where the elastic law's
+#: the work cap of the rival law's fits, as a multiple of the search's, where the elastic law's
 #: power term was kept (the load rig with Iwan elements and a power term simulates 6 x slower than
 #: with the cubic alone: 0.098 s against 0.017 s on 2478 samples)
 RESHAPED_RIVAL_CAP_FACTOR = 4.0
@@ -27,7 +27,7 @@ RESHAPED_RIVAL_CAP_FACTOR = 4.0
 SHAPED_RIVAL_CAP_FACTOR = 3.0
 
 
-#: the least time cap of the Iwan bank's last stages (restart, finer bank), as a multiple of the
+#: the least work cap of the Iwan bank's last stages (restart, finer bank), as a multiple of the
 #: search's
 IWAN_STAGE_CAP_FACTOR = 3.0
 
@@ -283,14 +283,14 @@ IWAN_SPLIT = 0.15
 
 
 def bank_cap_factor(elements: int) -> float:
-    """The time caps of a fit that carries an Iwan bank of ``elements`` elements, as a multiple of the
+    """The work caps of a fit that carries an Iwan bank of ``elements`` elements, as a multiple of the
     search's (whose fits carry IWAN_FIT_ELEMENTS): each simulation carries the bank, each Jacobian a
     column per element (docs/discovery.md, "Time")."""
     return max(1.0, elements / len(IWAN_K_FIT))
 
 
 def reseeded_cap_factor(m: ModelFit) -> float:
-    """The time caps of the shape fits beside ``m``'s reseeded Iwan bank (bank_cap_factor of the
+    """The work caps of the shape fits beside ``m``'s reseeded Iwan bank (bank_cap_factor of the
     elements ``m`` frees; 1 without a bank)."""
     return bank_cap_factor(sum(1 for k in IWAN_K if k in m.free))
 

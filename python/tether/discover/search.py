@@ -16,7 +16,8 @@ from ..models import HYSTERESIS_PARAMETERS, parse_model
 from ..traces import Trace
 from .document import _evidence, _slack_seen_by, ordinal
 from .evidence import disagreement, regime_table, regimes, signatures
-from .fitting import _heldout, _side_by_side, DEFAULT_BUDGET, fit_model, ModelFit, predict, SECOND_SEARCH_CAP_SHARE
+from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, fit_model, ModelFit, predict,
+                      SECOND_SEARCH_CAP_SHARE)
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
                     bic_change, full_data_verdict, heldout_verdict, slack_heldout_unasked)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
@@ -89,7 +90,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
 class Search(RivalBranch):
     """One discovery run: the record (searched, and whole where the search thins it), its noise and
     held-out split, the current fit and its held-out error, the steps, removals and refinements so
-    far, the time caps and the budget. run() takes the stages in turn: the search for effects
+    far, the work caps and the budget. run() takes the stages in turn: the search for effects
     (step by step, each named effect re-tested once a later one is in), the shapes of the named
     laws, a second search from a refined model, the Iwan bank's last stages and the rival law, and
     the fit to the whole record."""
@@ -141,8 +142,8 @@ class Search(RivalBranch):
         self.fit_start_model()
 
     def fit_start_model(self) -> None:
-        """The start model, fitted; the time cap of the search's fits, 2000 of its simulations (CPU
-        time, as the caps are counted); its held-out error."""
+        """The start model, fitted; the work cap of the search's fits, CAP_SIMULATIONS of its simulations
+        (counted in evaluations of the model's equations, as the caps are); its held-out error."""
         spec, trace = self.spec, self.trace
         self.say(f"fitting the start model {spec.canonical}"
                  + (f" with the nuisance parameters {', '.join(self.nuisance)}" if self.nuisance else ""))
@@ -151,9 +152,9 @@ class Search(RivalBranch):
         cur = fit_model(trace, spec, self.base_effects, starts, self.sc, nuisance=self.nuisance)
         if not cur.ok:
             raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
-        t_sim = _simulation_seconds(trace, cur)
-        self.t_sim_start, self.n_free_start = t_sim, cur.n_free
-        self.cap = max(5.0, 2000.0 * t_sim)
+        w_sim = _simulation_work(trace, cur)
+        self.w_sim_start, self.n_free_start = w_sim, cur.n_free
+        self.cap = CAP_SIMULATIONS * w_sim
         self.fit_cap = self.cap          # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
         self.cur = cur
         part_fit = self.fit(self.part, spec, self.base_effects, [cur.params], self.sc_part, cap_factor=1.0)
@@ -165,11 +166,11 @@ class Search(RivalBranch):
     def fit(self, tr, sp, eff, starts, scales, extra=(), held=(), own_thread=False, baseline_rms=None,
             cap_factor: float | None = None) -> ModelFit:
         """fit_model with the search's shape terms free (and those they replace held), the unseen
-        knots of the damping table held in a fit of the first part, the stage's time cap and the
+        knots of the damping table held in a fit of the first part, the stage's work cap and the
         budget's deadline; a fit that ends past the deadline marks the budget spent. The nuisance
         parameters are constants of the whole record: a fit of its first part holds them at the
         values its start carries (the whole record's fit of the same model), so that the held-out
-        test judges the law, not a mass or an offset refitted to bend the first part. The time cap:
+        test judges the law, not a mass or an offset refitted to bend the first part. The work cap:
         ``cap_factor`` of the stage's, by default a step candidate's (candidate_cap_factor)."""
         if cap_factor is None:
             cap_factor = self.candidate_cap_factor()
@@ -179,7 +180,7 @@ class Search(RivalBranch):
             held += _knots_unseen(self.part, extra, starts)
         else:       # the data-based estimate reads the record as the current model's nuisance values describe it
             starts = [data_start(tr, sp, self.cur.nuisance) if s is None else s for s in starts]
-        r = fit_model(tr, sp, eff, starts, scales, time_cap=cap_factor * self.fit_cap, extra=extra, held=held,
+        r = fit_model(tr, sp, eff, starts, scales, work_cap=cap_factor * self.fit_cap, extra=extra, held=held,
                       deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms,
                       nuisance=() if tr is self.part else self.nuisance)
         if self.deadline is not None and time.perf_counter() > self.deadline:
@@ -197,17 +198,17 @@ class Search(RivalBranch):
         return _heldout(self.trace, m.spec, pf.params, self.first) if pf.ok else float("inf")
 
     def model_cap_factor(self, m: ModelFit) -> float:
-        """The time cap for fits of ``m``'s kind, as a multiple of the search's: the cap is 2000
-        simulations of the start model, and a model with an Iwan bank and a table of c(x) simulates
-        several times slower; at least IWAN_STAGE_CAP_FACTOR, for a restarted bank's start simulates
-        slower than the bank it comes from (docs/discovery.md, "Time")."""
-        return max(IWAN_STAGE_CAP_FACTOR, 2000.0 * _simulation_seconds(self.trace, m) / self.cap)
+        """The work cap for fits of ``m``'s kind, as a multiple of the search's: the cap is CAP_SIMULATIONS
+        simulations of the start model, and a model with an Iwan bank and a table of c(x) may take
+        more integrator steps per simulation; at least IWAN_STAGE_CAP_FACTOR, for a restarted bank's
+        start simulates slower than the bank it comes from (docs/discovery.md, "Time")."""
+        return max(IWAN_STAGE_CAP_FACTOR, CAP_SIMULATIONS * _simulation_work(self.trace, m) / self.cap)
 
     def extension_cap_factor(self, m: ModelFit) -> float:
-        """The time cap for fits that extend ``m``, as a multiple of the search's (which is counted
+        """The work cap for fits that extend ``m``, as a multiple of the search's (which is counted
         in simulations of the start model): each simulation costs what one of ``m`` costs, and each
         Jacobian needs one per free parameter, so both ratios to the start model's, at least 1."""
-        per_simulation = _simulation_seconds(self.trace, m) / max(self.t_sim_start, 1e-9)
+        per_simulation = _simulation_work(self.trace, m) / max(self.w_sim_start, 1)
         return max(1.0, per_simulation) * max(1.0, (m.n_free + 1) / (self.n_free_start + 1))
 
     def out_of_budget(self, where: str) -> str:
@@ -422,12 +423,12 @@ class Search(RivalBranch):
     def part_fit(self, c: CandidateResult, own_thread: bool = False) -> ModelFit:
         """The first part of the record, fitted from the whole record's optimum (as the current
         model's part fit is: both sides start alike, and each converges to its own optimum), with
-        the time cap the candidate's fit had."""
+        the work cap the candidate's fit had."""
         return self.fit(self.part, c.fit.spec, c.fit.effects, [c.fit.params], self.sc_part, extra=c.fit.shape,
                         held=_replaced(c.fit.shape), own_thread=own_thread)
 
     def candidate_cap_factor(self) -> float:
-        """The time cap of a step's candidates and of their held-out fits, as a multiple of the
+        """The work cap of a step's candidates and of their held-out fits, as a multiple of the
         search's: that of a fit extending the current model, but the start model's own."""
         return 1.0 if self.cur is self.fits[0] else self.extension_cap_factor(self.cur)
 
@@ -565,7 +566,7 @@ class Search(RivalBranch):
     def reshape(self, skip, cap_factor: float | None = None, where: str | None = None) -> float | None:
         """The shape groups of refine_shapes from the current model, the effects in ``skip`` left out;
         the result taken unless the time budget ran out during the stage (then, with ``where``, the
-        stop reason says so). The fits' time cap: ``cap_factor`` of the search's, by default a step
+        stop reason says so). The fits' work cap: ``cap_factor`` of the search's, by default a step
         candidate's (candidate_cap_factor). Returns the refined model's held-out error (NaN where
         refine_shapes did not ask for it) where one was taken, else None."""
         if cap_factor is None:
@@ -640,7 +641,7 @@ class Search(RivalBranch):
     def swap_rival(self) -> None:
         """The hysteresis law fitted again with its rival in its place (rival_law), and the new law's
         own shape terms (the Iwan bank's slip strains, Bouc-Wen's exponent) where it is kept. Its
-        fits' time caps are a step candidate's (candidate_cap_factor), times rival_law's."""
+        fits' work caps are a step candidate's (candidate_cap_factor), times rival_law's."""
         added = [s.effect for s in self.steps if s.effect and s.effect in self.cur.effects]
         law = self.cur.spec.hysteresis
         shaped = any(k in HYSTERESIS_PARAMETERS.get(law, ()) for k in self.shape_free)
@@ -659,7 +660,7 @@ class Search(RivalBranch):
 
     def swap_wider_laws(self) -> None:
         """The elastic law and creep fitted again with their wider laws in their place (wider_law),
-        where the model still misses the record, with a step candidate's time caps."""
+        where the model still misses the record, with a step candidate's work caps."""
         base = self.candidate_cap_factor()
         self.adopt(rival.wider_law(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
@@ -679,7 +680,7 @@ class Search(RivalBranch):
         if not self.budget_hit:
             self.say(f"fitting {cur.label} to the whole record" if self.every > 1 else f"polishing the fit of {cur.label}")
             fitted = fit_model(self.whole, cur.spec, cur.effects, [cur.params], _scales(self.whole),
-                               time_cap=self.every * self.cap, extra=cur.shape,
+                               work_cap=self.every * self.cap, extra=cur.shape,
                                held=self.shape_held + _replaced(cur.shape), deadline=self.deadline,
                                max_iterations=WHOLE_RECORD_ITERATIONS, nuisance=self.nuisance,
                                central_differences=POLISH_CENTRAL)
@@ -690,11 +691,14 @@ class Search(RivalBranch):
         self.say(f"{self.fits[-1].model} on the whole record: RMS error {self.fits[-1].rms / self.sigma:.2f} x noise")
 
 
-def _simulation_seconds(trace: Trace, m: ModelFit) -> float:
-    """The CPU time of one simulation of ``m`` over ``trace`` (the unit of the search's time caps)."""
-    t = time.process_time()
+def _simulation_work(trace: Trace, m: ModelFit) -> int:
+    """The work of one simulation of ``m`` over ``trace``, in evaluations of the model's equations
+    (the unit of the search's work caps: the same on a busy machine as on an idle one)."""
+    from .. import identify_native as idn
+
+    before = idn.simulation_work()
     predict(trace, m.spec, m.params)
-    return time.process_time() - t
+    return idn.simulation_work() - before
 
 
 def _on_whole_record(whole: Trace, fits: list, steps: list, removals: list, fitted: ModelFit | None) -> list:
