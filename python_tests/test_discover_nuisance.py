@@ -255,6 +255,7 @@ def test_a_search_fit_starts_its_data_based_estimate_from_the_current_nuisance_v
     monkeypatch.setattr(search, "fit_model", lambda tr_, sp, eff, starts, sc, **kw: seen.append(starts))
     s = search.Search.__new__(search.Search)
     s.trace, s.part, s.shape_free, s.shape_held, s.fit_cap, s.deadline, s.nuisance = trace, object(), (), (), 1.0, None, ()
+    s.own_work_ratio = lambda *a: 1.0
     s.cur = ModelFit(spec=parse_model("linear"), effects=(), params={"EA": 1.0, "m": truth["m_true"],
                      "offset_measured": truth["offset_measured"]}, free=["EA"], rms=1.0, predicted=None)
     s.fit(trace, parse_model("linear+nonlinear_damping"), ("nonlinear_damping",), [{"EA": 2.0}, None], None,

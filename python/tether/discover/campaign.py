@@ -43,7 +43,8 @@ from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, ModelSpec, parse
 from ..noise import estimate_noise
 from ..traces import Trace
 from .document import ordinal
-from .fitting import CAP_SIMULATIONS, DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict
+from .fitting import (CAP_SIMULATIONS, DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict,
+                      work_ratio)
 from .judge import CRITERIA, _gap, _law_judged, bic_change, full_data_verdict
 from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _with_law, _without, candidates,
                    free_parameters)
@@ -101,6 +102,7 @@ class Campaign(Steps, Contradictions):
         self.retested_at = 0              # refinements up to here were followed by the re-tests
         self.stop = ""
         self.cap: float | None = None
+        self.cur_work: dict = {}          # one simulation's work of the current model: own_work_ratio
 
     def record(self, trace: Trace, mass_band, free_nuisance, samples: int) -> Record:
         """One record, its noise estimated on every sample; searched on every k-th sample where it
@@ -207,7 +209,7 @@ class Campaign(Steps, Contradictions):
             return math.sqrt(sum(k * (e / r.sigma) ** 2 for k, e, r in zip(n, res.rms_per_trace, self.records))
                              / sum(n))
 
-        cap = None if self.cap is None else self.cap * cap_factor
+        cap = None if self.cap is None else self.cap * cap_factor * self.own_work_ratio(spec, effects, starts[0], nzs)
         best, best_k, msg = None, 0, ""
         if len(starts) > 1:
             for k in range(len(starts)):
@@ -310,6 +312,18 @@ class Campaign(Steps, Contradictions):
         before = idn.simulation_work()
         self.evaluate(spec, effects, params, free, nzs)
         return idn.simulation_work() - before
+
+    def own_work_ratio(self, spec: ModelSpec, effects, start: dict | None, nzs: list) -> float:
+        """One simulation of the campaign with ``spec`` from ``start`` against one with the current
+        model, in work (at least 1): the caps count simulations of the model being fitted where it
+        simulates slower (Search.own_work_ratio's rule)."""
+        cur = getattr(self, "cur", None)
+        if start is None or cur is None:
+            return 1.0
+        if id(cur) not in self.cur_work:
+            self.cur_work[id(cur)] = self.simulation_work(cur.spec, cur.effects, cur.params, cur.free, cur.nz)
+        own = self.simulation_work(spec, effects, _law_only(start, spec), self.law_names(spec), nzs)
+        return work_ratio(own, self.cur_work[id(cur)])
 
     def cap_factor_for(self, m: CampaignFit) -> float:
         """The work cap for fits that extend ``m``, as a multiple of the search's (counted in

@@ -257,6 +257,14 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
 CAP_SIMULATIONS = 2400.0
 
 
+def work_ratio(own: float, current: float) -> float:
+    """How many simulations of the current model one simulation of the model being fitted is worth,
+    at least 1: a fit's cap, counted in simulations of the current model, is stretched by it, so
+    that a candidate that simulates slower (an Iwan bank makes several times the evaluations of the
+    linear model it extends) gets as many of its own simulations as the current model would."""
+    return max(1.0, float(own) / max(float(current), 1.0))
+
+
 #: the second search (from the refined model) caps its fits at this share of the first's: it starts
 #: within a few sigma of the record, where a candidate that earns its place converges in a few
 #: iterations, and the fits that run to the cap there crawl to nothing (a free vibration with

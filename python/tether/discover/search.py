@@ -17,7 +17,7 @@ from ..traces import Trace
 from .document import _evidence, _slack_seen_by, ordinal
 from .evidence import disagreement, regime_table, regimes, signatures
 from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, fit_model, ModelFit, predict,
-                      SECOND_SEARCH_CAP_SHARE)
+                      SECOND_SEARCH_CAP_SHARE, work_ratio)
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
                     bic_change, full_data_verdict, heldout_verdict, slack_heldout_unasked)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
@@ -102,6 +102,7 @@ class Search(RivalBranch):
         self.budget = budget
         self.deadline = None if budget is None else self.t_begin + float(budget)
         self.budget_hit = False          # a fit ran past the deadline: what it judged cannot be taken
+        self.cur_work: dict = {}         # one simulation's work of the current model, by (model, record): own_work_ratio
         self.say = progress or (lambda s: None)
         self.max_steps, self.heldout_candidates = max_steps, heldout_candidates
         self.noise = estimate_noise(trace)
@@ -152,7 +153,7 @@ class Search(RivalBranch):
         cur = fit_model(trace, spec, self.base_effects, starts, self.sc, nuisance=self.nuisance)
         if not cur.ok:
             raise DiscoveryError(f"{trace.name}: the start model {spec.canonical} does not fit: {cur.message}")
-        w_sim = _simulation_work(trace, cur)
+        w_sim = _simulation_work(trace, cur.spec, cur.params)
         self.w_sim_start, self.n_free_start = w_sim, cur.n_free
         self.cap = CAP_SIMULATIONS * w_sim
         self.fit_cap = self.cap          # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
@@ -171,7 +172,9 @@ class Search(RivalBranch):
         parameters are constants of the whole record: a fit of its first part holds them at the
         values its start carries (the whole record's fit of the same model), so that the held-out
         test judges the law, not a mass or an offset refitted to bend the first part. The work cap:
-        ``cap_factor`` of the stage's, by default a step candidate's (candidate_cap_factor)."""
+        ``cap_factor`` of the stage's, by default a step candidate's (candidate_cap_factor), counted in
+        simulations of the model being fitted where it simulates slower than the current model
+        (own_work_ratio)."""
         if cap_factor is None:
             cap_factor = self.candidate_cap_factor()
         extra = tuple(extra) + tuple(k for k in self.shape_free if k not in extra and k in sp.parameters)
@@ -180,7 +183,8 @@ class Search(RivalBranch):
             held += _knots_unseen(self.part, extra, starts)
         else:       # the data-based estimate reads the record as the current model's nuisance values describe it
             starts = [data_start(tr, sp, self.cur.nuisance) if s is None else s for s in starts]
-        r = fit_model(tr, sp, eff, starts, scales, work_cap=cap_factor * self.fit_cap, extra=extra, held=held,
+        work_cap = cap_factor * self.fit_cap * self.own_work_ratio(tr, sp, starts[0])
+        r = fit_model(tr, sp, eff, starts, scales, work_cap=work_cap, extra=extra, held=held,
                       deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms,
                       nuisance=() if tr is self.part else self.nuisance)
         if self.deadline is not None and time.perf_counter() > self.deadline:
@@ -192,6 +196,23 @@ class Search(RivalBranch):
         return self.fit(tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, extra,
                         held=_replaced(extra), own_thread=own_thread, cap_factor=cap_factor)
 
+    def own_work_ratio(self, tr: Trace, sp, start: dict | None) -> float:
+        """The work of one simulation of ``sp`` from ``start`` over ``tr`` against the current model's
+        (at least 1): the caps, which count simulations of the current model, count simulations of the
+        model being fitted where it simulates slower. An Iwan bank makes several times the evaluations
+        of the linear model it extends, and a step-1 candidate capped in the linear model's work was
+        abandoned where the CPU-second caps had let it finish (docs/discovery.md, "Work caps")."""
+        if start is None:
+            return 1.0
+        key = (id(self.cur), id(tr))
+        if key not in self.cur_work:
+            self.cur_work[key] = _simulation_work(tr, self.cur.spec, self.cur.params)
+        try:
+            own = _simulation_work(tr, sp, start)
+        except (RuntimeError, ValueError):
+            return 1.0
+        return work_ratio(own, self.cur_work[key])
+
     def heldout_of(self, m: ModelFit) -> float:
         """The held-out error of ``m``: its prediction of the held-out part by its fit to the first."""
         pf = self.fit(self.part, m.spec, m.effects, [m.params], self.sc_part)
@@ -202,13 +223,13 @@ class Search(RivalBranch):
         simulations of the start model, and a model with an Iwan bank and a table of c(x) may take
         more integrator steps per simulation; at least IWAN_STAGE_CAP_FACTOR, for a restarted bank's
         start simulates slower than the bank it comes from (docs/discovery.md, "Time")."""
-        return max(IWAN_STAGE_CAP_FACTOR, CAP_SIMULATIONS * _simulation_work(self.trace, m) / self.cap)
+        return max(IWAN_STAGE_CAP_FACTOR, CAP_SIMULATIONS * _simulation_work(self.trace, m.spec, m.params) / self.cap)
 
     def extension_cap_factor(self, m: ModelFit) -> float:
         """The work cap for fits that extend ``m``, as a multiple of the search's (which is counted
         in simulations of the start model): each simulation costs what one of ``m`` costs, and each
         Jacobian needs one per free parameter, so both ratios to the start model's, at least 1."""
-        per_simulation = _simulation_work(self.trace, m) / max(self.w_sim_start, 1)
+        per_simulation = _simulation_work(self.trace, m.spec, m.params) / max(self.w_sim_start, 1)
         return max(1.0, per_simulation) * max(1.0, (m.n_free + 1) / (self.n_free_start + 1))
 
     def out_of_budget(self, where: str) -> str:
@@ -691,13 +712,13 @@ class Search(RivalBranch):
         self.say(f"{self.fits[-1].model} on the whole record: RMS error {self.fits[-1].rms / self.sigma:.2f} x noise")
 
 
-def _simulation_work(trace: Trace, m: ModelFit) -> int:
-    """The work of one simulation of ``m`` over ``trace``, in evaluations of the model's equations
-    (the unit of the search's work caps: the same on a busy machine as on an idle one)."""
+def _simulation_work(trace: Trace, spec, params: dict) -> int:
+    """The work of one simulation of ``spec`` at ``params`` over ``trace``, in evaluations of the
+    model's equations (the unit of the search's work caps: the same on a busy machine as on an idle one)."""
     from .. import identify_native as idn
 
     before = idn.simulation_work()
-    predict(trace, m.spec, m.params)
+    predict(trace, spec, params)
     return idn.simulation_work() - before
 
 
