@@ -249,11 +249,9 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
                                                    zip(r.names, r.ci_low, r.ci_high)})
 
 
-#: every fit of a discovery is capped at this many simulations of the model it starts from, counted
-#: in work (evaluations of the equations: the same on a busy machine as on an idle one). Until
-#: 2026-11-27 the caps were 2000 x the CPU time of one simulation, timed once, which came to 1273-2831
-#: steady simulations (median 2206, upper quartile ~2400) over 14 runs on five tuning records; the
-#: upper quartile keeps the fits those caps let finish in most runs (docs/discovery.md, "Work caps")
+#: every fit of a discovery is capped at this many simulations of the start model (times the stage's
+#: factors, and work_ratio where the model fitted simulates slower), counted in work: evaluations of
+#: the equations, the same on a busy machine as on an idle one (docs/discovery.md, "Work caps")
 CAP_SIMULATIONS = 2400.0
 
 
