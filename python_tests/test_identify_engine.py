@@ -545,3 +545,33 @@ def test_the_offsets_jacobian_column_equals_the_simulated_one():
     sv = np.linalg.svd(np.column_stack(cols), compute_uv=False)
     assert np.allclose(r.singular_values, sv, rtol=1e-8), (r.singular_values, sv)
     assert abs(p["offset_measured"] - 0.0037) < 3e-6, p
+
+
+def test_a_solver_step_that_overshoots_across_a_long_hold_is_retried_not_called_a_runaway(tmp_path):
+    """Across a creep test's long holds CVODE takes steps of thousands of seconds, and the trial state
+    of such a step can lie far beyond any tether's strain though the solution never goes there. The
+    integrator refuses that trial as recoverable, and CVODE retries a shorter step; it used to stop
+    the simulation at once and call it a runaway, and a campaign's Bouc-Wen fits failed to simulate
+    their start on its creep test (campaign 1000, records of up to 4,000 samples, 2026-11-27:
+    "strain 26381 is beyond +-1" at t = 19800 s, a record that ends at 19800 s). The fit must
+    simulate its start, and give it the error that tether.discover.predict (the engine's simulate,
+    sample by sample) gives the same parameters."""
+    sys.path.insert(0, str(REPO / "python_tests"))
+    import campaign_records as cr
+    from tether.discover.fitting import ENGINE_OPTIONS, predict
+    from tether.fit import fit_traces
+    from tether.models import parse_model
+    from tether.traces import read_trace
+
+    sizes = {"creep": {"rate": 0.2, "creep_program": [[100.0, 3.0], [5.0, 2.5]]}}
+    cr.record("creep", {"creep", "slack", "hysteresis"}, cr.tether_material(1000), 1000002, sizes).write(tmp_path, "c")
+    trace = read_trace(tmp_path / "c")
+    spec = parse_model("linear+boucwen", trace.experiment)
+    fixed = {"bw_n": 1.0, "bw_b2": 0.0, "bw_b3": 0.0, "bw_b4": 0.0, "bw_b5": 0.0, "bw_b6": 0.0}
+    fitted = fit_traces([trace], spec, free=["bw_A"], start={"bw_A": 180.46144843628986}, fixed=fixed,
+                        max_iterations=0, **ENGINE_OPTIONS)
+    y = predict(trace, spec, fitted.parameters)
+    simulated = float(np.sqrt(np.mean((y - trace.measured) ** 2)))
+    print(f"FIGURE long hold: the fit's start {fitted.rms_per_trace[0]:.9g} m, simulated sample by sample "
+          f"{simulated:.9g} m")
+    assert fitted.rms_per_trace[0] == pytest.approx(simulated, rel=1e-9)

@@ -40,12 +40,15 @@ struct tether_integrator {
     long events, resets;
     long steps_before, rhs_before; /* CVODE's counts of the runs before its last re-initialisation */
     long runaway_refusals; /* rhs calls refused as a runaway within this advance */
+    char runaway[512];     /* why the last of them was refused */
     char error[512];
 };
 
-/* After this many refused rhs calls CVODE is stopped: it treats a refused rhs as a failed step
- * and would otherwise creep towards the runaway boundary in ever smaller steps (up to its whole
- * step budget, ~1 s) */
+/* A state beyond the runaway bounds refuses the rhs call as recoverable: it is often a trial of a
+ * long step (the predictor of a step across a long hold extrapolates far past any tether's strain),
+ * and CVODE retries it shorter. After this many refused calls CVODE is stopped: a run that really
+ * runs away would otherwise creep towards the bound in ever smaller steps (up to its whole step
+ * budget, ~1 s) */
 #define RUNAWAY_REFUSALS_TO_STOP 50
 
 double integrator_local_tolerance(double rtol)
@@ -58,9 +61,9 @@ static int rhs(realtype t, N_Vector y, N_Vector ydot, void *user)
 {
     tether_integrator *I = (tether_integrator *)user;
     if (I->input) I->input(I->input_ctx, t, I->M);
-    if (tether_runaway(I->M, t, NV_DATA_S(y), I->error, sizeof I->error)) {
+    if (tether_runaway(I->M, t, NV_DATA_S(y), I->runaway, sizeof I->runaway)) {
         I->runaway_refusals += 1;
-        return -1; /* stop now */
+        return I->runaway_refusals >= RUNAWAY_REFUSALS_TO_STOP ? -1 : 1; /* 1: CVODE retries a shorter step */
     }
     tether_derivatives(I->M, t, NV_DATA_S(y), NV_DATA_S(ydot));
     for (int i = 0; i < N_STATES; ++i)
@@ -221,7 +224,10 @@ int integrator_advance_within(tether_integrator *I, double t_end, double t_stop,
             continue;
         }
         if (flag < 0) {
-            if (!I->error[0]) snprintf(I->error, sizeof I->error, "CVode failed with flag %d", flag);
+            if (I->runaway_refusals > 0) /* the runaway is the more specific reason */
+                snprintf(I->error, sizeof I->error, "%s", I->runaway);
+            else if (!I->error[0])
+                snprintf(I->error, sizeof I->error, "CVode failed with flag %d", flag);
             /* the last good point: CVODE's current internal time and solution */
             realtype tcur = I->t;
             if (CVodeGetCurrentTime(I->cvode, &tcur) == CV_SUCCESS && tcur > I->t &&
