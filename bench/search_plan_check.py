@@ -115,7 +115,8 @@ def _run(root: str, out: str, N: int) -> None:
     search.fit_model = fake_fit
     search.predict = lambda tr, sp, p: np.zeros(len(tr.time))
     judge.predict = lambda tr, sp, p: np.full(len(tr.time), 1.0)
-    search._simulation_work = lambda tr, m: 1000
+    search._simulation_work = lambda *a: 1000         # the work caps' unit (trace, spec, params)
+    search._simulation_seconds = lambda *a: 0.001     # its name in a baseline from before the work caps
     search.regimes = lambda tr, fit, *a: {"slack": np.zeros(len(tr.time), bool)}
     search.disagreement = lambda *a, **k: []
     search.regime_table = lambda *a, **k: {}
