@@ -98,6 +98,7 @@ class Campaign(Steps, Contradictions):
         self.removals: list[Removal] = []
         self.refinements: list[Refinement] = []
         self.fits: list[CampaignFit] = []
+        self.cur: CampaignFit | None = None   # the current model, from the start model's fit on
         self.rivals: dict = {}            # effect -> {law: the shared law of its candidate's fit}
         self.retested_at = 0              # refinements up to here were followed by the re-tests
         self.stop = ""
@@ -317,7 +318,7 @@ class Campaign(Steps, Contradictions):
         """One simulation of the campaign with ``spec`` from ``start`` against one with the current
         model, in work (at least 1): the caps count simulations of the model being fitted where it
         simulates slower (Search.own_work_ratio's rule)."""
-        cur = getattr(self, "cur", None)
+        cur = self.cur
         if start is None or cur is None:
             return 1.0
         if id(cur) not in self.cur_work:
