@@ -13,7 +13,8 @@ then each candidate
 effect the records can reveal (the union of laws.candidates) is fitted to all records jointly,
 each weighted by its own noise (tether.fit.fit_traces), and judged by the one judge
 (judge.full_data_verdict, judge.heldout_verdict) on the campaign's error in noise units (every
-residual divided by its record's noise), the held-out test on each record's held-out part; those
+residual divided by its record's noise), its gap and held-out test on the records that can reveal
+the effect (Campaign.effect_verdict, Campaign.heldout_tests); those
 that pass are ranked by each record's error against its own (campaign_records.ranked_bic_change), and an
 effect whose own law does not reveal it on its lead record is fitted with its wider law in the same
 step (Campaign.wider_candidates). Per
@@ -45,7 +46,7 @@ from ..traces import Trace
 from .document import ordinal
 from .fitting import (CAP_SIMULATIONS, DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict,
                       work_ratio)
-from .judge import CRITERIA, _gap, _law_judged, bic_change, full_data_verdict
+from .judge import CRITERIA, _gap, _law_judged, bic_change
 from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _with_law, _without, candidates,
                    free_parameters)
 from .nuisance import baked, nuisance_parameters, nuisance_start
@@ -625,7 +626,7 @@ class Campaign(Steps, Contradictions):
             if not rf.ok or self.budget_hit:
                 continue
             bic = bic_change(rf, cur, self.n)
-            keep, why = full_data_verdict(1.0, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
+            keep, why = self.effect_verdict(e, rf, cur, bic, cur.n_free - rf.n_free)
             step.retests.append(Retest(e, bic, keep, why, None if beside == step.effect else beside))
             self.say(f"  re-test of {e} beside {beside}: without it {rf.rms:.2f} x noise ({why}): "
                      + ("kept" if keep else "removed"))

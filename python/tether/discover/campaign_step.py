@@ -207,8 +207,27 @@ class Steps:
         able = tuple(i for i, r in enumerate(self.records) if not unrevealed(r.trace, effect))
         return None if len(able) == len(self.records) else able
 
+    def rms_among(self, f: CampaignFit, among: tuple | None) -> float:
+        """The campaign's error in noise units on the records ``among`` (indices; every record where None)."""
+        if among is None:
+            return f.rms
+        zsq = sum(self.records[i].n * (f.rms_records[i] / self.records[i].sigma) ** 2 for i in among)
+        return math.sqrt(zsq / sum(self.records[i].n for i in among))
+
+    def effect_verdict(self, effect: str, without: CampaignFit, with_: CampaignFit, bic: float,
+                       added: int) -> tuple[bool, str]:
+        """The one-record rule (judge.full_data_verdict) on the campaign for ``effect``, from the fit
+        ``without`` it to the fit ``with_`` it: the BIC over every record; the gap above the noise on
+        the records that can reveal the effect (laws.unrevealed), as its held-out test reads them.
+        Another record's error moves with the shared law, not with the effect, and one missed far
+        above its noise would hide the gap the effect closes where it shows (docs/campaign-discovery.md,
+        "The search")."""
+        able = self.able_to_reveal(effect)
+        ok, why = full_data_verdict(1.0, self.rms_among(without, able), self.rms_among(with_, able), bic, added)
+        return ok, why + ("" if able is None else " (the records that can reveal it)")
+
     def judge(self, effect: str, f: CampaignFit) -> CampaignCandidate:
-        """The one-record rule on the campaign's error in noise units (sigma = 1); slack, which adds
+        """The one-record rule on the campaign's error in noise units (sigma = 1, effect_verdict); slack, which adds
         no parameter, only where it acts in some record (judge._slack_acts); hysteresis only where its
         loops earn their place (judge.loops_verdict)."""
         cur = self.cur
@@ -218,7 +237,7 @@ class Steps:
         if not f.ok:
             c.verdict = f"the fit failed: {f.message}"
             return c
-        c.accepted, c.verdict = full_data_verdict(1.0, cur.rms, f.rms, c.bic_change, dk)
+        c.accepted, c.verdict = self.effect_verdict(effect, cur, f, c.bic_change, dk)
         if c.accepted and effect == "slack":
             acts = [r for i, r in enumerate(self.records) if _slack_acts(
                 r.trace, cur.spec.for_experiment(r.trace.experiment), self.record_fit(f, i), r.sigma, "")[0]]
