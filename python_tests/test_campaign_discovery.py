@@ -658,3 +658,20 @@ def test_a_campaign_credits_hysteresis_only_where_its_loops_open(tmp_path, terms
     print(f"FIGURE campaign, Bouc-Wen {terms}: {fit.rms:.2f} x noise (linear {camp.cur.rms:.1f}): {c.verdict}")
     assert fit.rms < 1.1 and camp.cur.rms > 100.0
     assert c.accepted is loops, c.verdict
+
+
+def test_an_effect_added_removed_and_added_again_is_named_once():
+    """added_effects (OUT.json, the bench's named set) lists each effect of the final model once,
+    at the addition that stands: the held-out campaign 2005 (2026-11-28) added creep, removed it in
+    a re-test and added it again, and was reported as named ['creep', 'creep', 'hysteresis']. An
+    effect removed for good is not named; the one-record Discovery reads the same rule."""
+    from tether.discover.campaign_records import CampaignDiscovery
+    from tether.discover.records import Discovery
+
+    step = lambda e: type("S", (), {"effect": e})()     # noqa: E731 - a step's effect is all the rule reads
+    final = type("F", (), {"effects": ("hysteresis", "creep")})()
+    steps = [step("creep"), step("hysteresis"), step("slack"), step("creep"), step(None)]
+    for cls in (CampaignDiscovery, Discovery):
+        d = cls.__new__(cls)
+        d.steps, d.fits = steps, [final]
+        assert d.added_effects == ["hysteresis", "creep"]

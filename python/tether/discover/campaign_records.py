@@ -14,7 +14,7 @@ from .. import nuisance as NZ
 from ..models import ModelSpec
 from ..noise import NoiseEstimate
 from ..traces import Trace
-from .records import DiscoveryError, Refinement, Removal, Retest
+from .records import DiscoveryError, Refinement, Removal, Retest, effects_added
 from .scales import _Scales
 
 
@@ -125,8 +125,7 @@ class CampaignDiscovery:
 
     @property
     def added_effects(self) -> list:
-        """The effects of the final model the search added, in the order they were added."""
-        return [s.effect for s in self.steps if s.effect and s.effect in self.final.effects]
+        return effects_added(self.steps, self.final.effects)
 
 
 def _law_only(params: dict, spec: ModelSpec) -> dict:

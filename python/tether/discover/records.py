@@ -101,8 +101,19 @@ class Discovery:
 
     @property
     def added_effects(self) -> list[str]:
-        """The effects of the final model that the run added, in the order they were added."""
-        return [s.effect for s in self.steps if s.effect and s.effect in self.final.effects]
+        return effects_added(self.steps, self.final.effects)
+
+
+def effects_added(steps, final_effects) -> list[str]:
+    """The effects of the final model that the steps added, each once, in the order of the addition
+    that stands: an effect added, removed by a re-test and added again counts at its last step."""
+    out: list[str] = []
+    for s in steps:
+        if s.effect and s.effect in final_effects:
+            if s.effect in out:
+                out.remove(s.effect)
+            out.append(s.effect)
+    return out
 
 
 @dataclass
