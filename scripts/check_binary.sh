@@ -35,7 +35,7 @@ required="GetTypesPlatform GetVersion SetDebugLogging Instantiate FreeInstance S
   GetIntegerStatus GetBooleanStatus GetStringStatus"
 missing=""
 for f in $required; do
-  printf '%s\n' "$defined" | grep -qx "fmi2$f" || missing="$missing fmi2$f"
+  grep -qx "fmi2$f" <<<"$defined" || missing="$missing fmi2$f"
 done
 if [ -n "$missing" ]; then
   echo "check_binary: FAIL: FMI 2.0 functions not exported:$missing" >&2
