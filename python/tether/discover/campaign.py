@@ -65,7 +65,8 @@ SETTLE_ROUNDS = 2
 from .campaign_contradictions import Contradictions
 from .campaign_step import Steps
 from .campaign_records import (CampaignCandidate, CampaignDiscovery, CampaignFit, CampaignInputError,  # noqa: F401
-                               CampaignStep, Record, _law_only, check_campaign, ranked_bic_change)
+                               CampaignStep, Record, _law_only, check_campaign, in_noise_units,
+                               ranked_bic_change)
 
 
 @in_one_blas_thread
@@ -140,7 +141,7 @@ class Campaign(Steps, Contradictions):
                  seconds: float = 0.0) -> CampaignFit:
         """The campaign fit of ``params`` (the shared law) with each record's nuisance ``nzs``: the
         predictions of every whole record, their errors, the campaign's in noise units."""
-        preds, rms, zsq = [], [], 0.0
+        preds, rms = [], []
         for r, nz in zip(self.records, nzs):
             try:
                 y = predict(r.trace, spec, {**params, **nz})
@@ -150,9 +151,8 @@ class Campaign(Steps, Contradictions):
             e = e if math.isfinite(e) else float("inf")
             preds.append(y)
             rms.append(e)
-            zsq += r.n * (e / r.sigma) ** 2
         return CampaignFit(spec=spec, effects=tuple(effects), params=dict(params), free=list(free),
-                           rms=math.sqrt(zsq / self.n), rms_records=rms, predicted=preds,
+                           rms=in_noise_units(rms, self.records), rms_records=rms, predicted=preds,
                            nz=[dict(nz) for nz in nzs], n_nuisance=self.n_nuisance, message=message, seconds=seconds,
                            ok=all(math.isfinite(e) for e in rms))
 
@@ -208,8 +208,7 @@ class Campaign(Steps, Contradictions):
         def z(res) -> float:
             """The fit's error in noise units (fit_traces' rms is the plain one over all samples)."""
             n = [len(r.part.time if parts else r.trace.time) for r in self.records]
-            return math.sqrt(sum(k * (e / r.sigma) ** 2 for k, e, r in zip(n, res.rms_per_trace, self.records))
-                             / sum(n))
+            return in_noise_units(res.rms_per_trace, self.records, n)
 
         cap = None if self.cap is None else self.cap * cap_factor * self.own_work_ratio(spec, effects, starts[0], nzs)
         best, best_k, msg = None, 0, ""

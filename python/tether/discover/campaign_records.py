@@ -150,6 +150,14 @@ def check_campaign(traces: Sequence[Trace]) -> None:
         seen[key] = tr.stem
 
 
+def in_noise_units(errors: Sequence[float], records: Sequence, counts: Sequence[int] | None = None) -> float:
+    """The campaign's error in noise units over ``records``: the RMS over all their samples of each
+    residual divided by its record's noise, from each record's RMS error ``errors`` [its unit] on
+    ``counts`` samples (default: the whole record's)."""
+    counts = [r.n for r in records] if counts is None else counts
+    return math.sqrt(sum(k * (e / r.sigma) ** 2 for k, e, r in zip(counts, errors, records)) / sum(counts))
+
+
 def ranked_bic_change(records: Sequence, before, after, added: int, n: int) -> float:
     """The BIC change that ranks the candidates that pass: each record's error read against its
     own (the sum over records of n ln(rms_after^2 / rms_before^2), the likelihood where each

@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from ..models import EFFECTS, ModelSpec
-from .campaign_records import CampaignCandidate, CampaignFit, CampaignStep, ranked_bic_change
+from .campaign_records import CampaignCandidate, CampaignFit, CampaignStep, in_noise_units, ranked_bic_change
 from .evidence import regimes
 from .fitting import ModelFit, _side_by_side
 from .judge import (CRITERIA, _bic, _gap, _slack_acts, bic_change, closed_loops, full_data_verdict, heldout_verdict,
@@ -211,8 +211,7 @@ class Steps:
         """The campaign's error in noise units on the records ``among`` (indices; every record where None)."""
         if among is None:
             return f.rms
-        zsq = sum(self.records[i].n * (f.rms_records[i] / self.records[i].sigma) ** 2 for i in among)
-        return math.sqrt(zsq / sum(self.records[i].n for i in among))
+        return in_noise_units([f.rms_records[i] for i in among], [self.records[i] for i in among])
 
     def effect_verdict(self, effect: str, without: CampaignFit, with_: CampaignFit, bic: float,
                        added: int) -> tuple[bool, str]:
