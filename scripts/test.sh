@@ -34,7 +34,7 @@ fmutool_check() {
   out=$(.venv/bin/fmutool -input "$FMU" -check 2>&1); rc=$?
   printf '%s\n' "$out" | sed 's/^/    /'
   # belt and braces: fmutool exits 7 on a failed check; also refuse ERROR lines
-  [ $rc -eq 0 ] && ! printf '%s\n' "$out" | grep -q '^ERROR'
+  [ $rc -eq 0 ] && ! grep -q '^ERROR' <<<"$out"
 }
 
 check "fmpy validate" "$PY" -m fmpy validate "$FMU"
