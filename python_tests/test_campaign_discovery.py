@@ -675,3 +675,16 @@ def test_an_effect_added_removed_and_added_again_is_named_once():
         d = cls.__new__(cls)
         d.steps, d.fits = steps, [final]
         assert d.added_effects == ["hysteresis", "creep"]
+
+
+def test_a_record_reveals_an_effect_added_again_once(split_campaign):
+    """OUT.json's records[].revealed reads the same rule as added_effects: the split campaign's
+    steps with the first one's addition repeated (added, removed, added again) list each revealed
+    effect once per record."""
+    _, _, d, doc, _ = split_campaign
+    again = replace(d, steps=list(d.steps) + [d.steps[0]])
+    assert d.steps[0].effect in d.final.effects and d.steps[0].revealed_by
+    for before, after in zip(doc["records"], campaign_document(again)["records"]):
+        assert after["revealed"] == ([e for e in before["revealed"] if e != d.steps[0].effect]
+                                     + [d.steps[0].effect] * (before["name"] in d.steps[0].revealed_by))
+        assert len(set(after["revealed"])) == len(after["revealed"])

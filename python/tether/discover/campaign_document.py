@@ -10,6 +10,7 @@ from ..models import EFFECTS
 from .campaign import CampaignDiscovery, Record
 from .judge import CRITERIA
 from .laws import unrevealed
+from .records import effects_added
 
 
 def _over(x, r: Record):
@@ -112,8 +113,7 @@ def campaign_document(d: CampaignDiscovery) -> dict:
             "steps": [{"effect": s.effect, "rmse_before": s.records_before[i],
                        "rmse_after": None if s.records_after is None else s.records_after[i],
                        "revealed": r.name in s.revealed_by} for s in d.steps if s.effect],
-            "revealed": [s.effect for s in d.steps if s.effect and r.name in s.revealed_by
-                         and s.effect in final.effects],
+            "revealed": effects_added([s for s in d.steps if s.effect and r.name in s.revealed_by], final.effects),
             "effects": _record_verdicts(d, i, campaign),
             "nuisance": {n: {"stated": v_stated, "value": float(final.nz[i][n])}
                          for n, v_stated in _stated(r).items() if n in final.nz[i]},
