@@ -20,8 +20,9 @@ effect whose own law does not reveal it on its lead record is fitted with its wi
 step (Campaign.wider_candidates). Per
 step every record's error before and after says which record revealed the effect (the one-record
 rule on that record's samples). Each named effect is re-tested once a later one is in
-(Campaign.retest_named); where a record is still missed at the end, the named effects' wider laws
-are tried (Campaign.wider_laws); records beyond their share of the search's samples are searched
+(Campaign.retest_named); where a record is still missed at the end, the Iwan bank is made finer
+(Campaign.finer_bank: on the record that shows it worst first, then jointly; its terms stay free in
+later fits, CampaignFit.shape) and the named effects' wider laws are tried (Campaign.wider_laws); records beyond their share of the search's samples are searched
 thinned and the final model fitted to every sample (Campaign.on_whole_records). A record the
 final model misses and whose own fit of the law earns its parameters against the shared one is
 flagged as contradicting the others. docs/campaign-discovery.md tells the design and the measured
@@ -63,6 +64,7 @@ SETTLE_ROUNDS = 2
 
 
 from .campaign_contradictions import Contradictions
+from .campaign_reseed import Reseeding
 from .campaign_step import Steps
 from .campaign_records import (CampaignCandidate, CampaignDiscovery, CampaignFit, CampaignInputError,  # noqa: F401
                                CampaignStep, Record, _law_only, check_campaign, in_noise_units,
@@ -78,7 +80,7 @@ def discover_campaign(traces: Sequence[Trace], start: str = "linear", progress: 
     return Campaign(traces, start, progress, max_steps, heldout_candidates, budget, mass_band, free_nuisance).run()
 
 
-class Campaign(Steps, Contradictions):
+class Campaign(Steps, Contradictions, Reseeding):
     """One campaign discovery: the records, the current joint fit and its held-out error, the steps."""
 
     def __init__(self, traces, start, progress, max_steps, heldout_candidates, budget, mass_band, free_nuisance):
@@ -138,9 +140,10 @@ class Campaign(Steps, Contradictions):
         return names
 
     def evaluate(self, spec: ModelSpec, effects, params: dict, free: list, nzs: list, message: str = "",
-                 seconds: float = 0.0) -> CampaignFit:
+                 seconds: float = 0.0, shape: Sequence[str] = ()) -> CampaignFit:
         """The campaign fit of ``params`` (the shared law) with each record's nuisance ``nzs``: the
-        predictions of every whole record, their errors, the campaign's in noise units."""
+        predictions of every whole record, their errors, the campaign's in noise units; ``shape``:
+        the shape terms the fit freed beyond the law's (as_fitted)."""
         preds, rms = [], []
         for r, nz in zip(self.records, nzs):
             try:
@@ -154,7 +157,13 @@ class Campaign(Steps, Contradictions):
         return CampaignFit(spec=spec, effects=tuple(effects), params=dict(params), free=list(free),
                            rms=in_noise_units(rms, self.records), rms_records=rms, predicted=preds,
                            nz=[dict(nz) for nz in nzs], n_nuisance=self.n_nuisance, message=message, seconds=seconds,
-                           ok=all(math.isfinite(e) for e in rms))
+                           ok=all(math.isfinite(e) for e in rms), shape=tuple(shape))
+
+    def as_fitted(self, m: CampaignFit, params: dict | None = None, nzs: list | None = None) -> CampaignFit:
+        """``m`` evaluated again (on the records as they are now), with other ``params`` or nuisance
+        ``nzs`` where given; its free terms and shape kept."""
+        return self.evaluate(m.spec, m.effects, m.params if params is None else params, m.free,
+                             m.nz if nzs is None else nzs, m.message, m.seconds, m.shape)
 
     def engine_fit(self, traces: list, spec: ModelSpec, names: list, start: dict | None, fixed: dict,
                    max_iterations: int, work_cap: float | None, own_thread: bool):
@@ -183,16 +192,20 @@ class Campaign(Steps, Contradictions):
 
     def fit(self, spec: ModelSpec, effects, starts: Sequence[dict | None], nzs: list | None = None,
             parts: bool = False, own_thread: bool = False, max_iterations: int = 100, cap_factor: float = 1.0,
-            start_nzs: Sequence[list] | None = None) -> CampaignFit:
+            start_nzs: Sequence[list] | None = None, extra: Sequence[str] = ()) -> CampaignFit:
         """The shared law of ``spec`` fitted to every record (or every record's first part), each
         record's nuisance held at ``nzs`` (or, start by start, at ``start_nzs``: the nuisance values
         that go with each start); from each start a few iterations where there are several, the best
-        carried on. The work caps are the search's times ``cap_factor`` (a model that simulates
+        carried on; ``extra``: shape terms freed beyond the law's (those of ``spec``; a fit that
+        extends or refits a model passes that model's shape, so that what a reseeding move freed
+        stays free). The work caps are the search's times ``cap_factor`` (a model that simulates
         slower). The result is evaluated on the whole records (CampaignFit)."""
         t0 = time.perf_counter()
         nzs = [dict(r.nz) for r in self.records] if nzs is None else nzs
         start_nzs = [nzs] * len(starts) if start_nzs is None else list(start_nzs)
         names = self.law_names(spec)
+        shape = tuple(n for n in extra if n in spec.parameters and n not in names)
+        names += list(shape)
         sc = self.records[0].sc
         fixed_keys = [k for k in HELD_AT_START if k in spec.parameters and k not in names]
 
@@ -230,10 +243,10 @@ class Campaign(Steps, Contradictions):
             return CampaignFit(spec=spec, effects=tuple(effects), params={}, free=names, rms=float("inf"),
                                rms_records=[float("inf")] * len(self.records), predicted=[], nz=nzs,
                                n_nuisance=self.n_nuisance, ok=False, message=msg or "fit failed",
-                               seconds=time.perf_counter() - t0)
+                               seconds=time.perf_counter() - t0, shape=shape)
         params = {k: float(v) for k, v in best.parameters.items()}
         return self.evaluate(spec, effects, params, list(best.free), start_nzs[best_k], best.message,
-                             time.perf_counter() - t0)
+                             time.perf_counter() - t0, shape)
 
     def refit_nuisance(self, spec: ModelSpec, params: dict, nzs: list | None = None, own_thread: bool = False) -> list:
         """Each record's nuisance values fitted with the shared law ``params`` held (a short fit per
@@ -279,17 +292,19 @@ class Campaign(Steps, Contradictions):
         r = self.records[lead]
         cap = None if self.cap is None else self.cap * cap_factor
         alone = fit_model(r.trace, spec.for_experiment(r.trace.experiment), effects, starts, r.sc,
-                          nuisance=r.nuisance, work_cap=cap, own_thread=own_thread, deadline=self.deadline)
+                          nuisance=r.nuisance, work_cap=cap, own_thread=own_thread, deadline=self.deadline,
+                          extra=self.cur.shape)
         nzs = [dict(x.nz) for x in self.records]
         if alone.ok:
             lead_law = _law_only(alone.params, spec)
             lead_nzs = [dict(nz) for nz in nzs]
             lead_nzs[lead] = dict(alone.nuisance)
             f = self.fit(spec, effects, [{**self.cur.params, **lead_law}, {**lead_law, **self.cur.params}],
-                         start_nzs=[lead_nzs, nzs], own_thread=own_thread, cap_factor=cap_factor)
+                         start_nzs=[lead_nzs, nzs], own_thread=own_thread, cap_factor=cap_factor,
+                         extra=self.cur.shape)
         else:
             f = self.fit(spec, effects, [self.cur.params, None], nzs=nzs, own_thread=own_thread,
-                         cap_factor=cap_factor)
+                         cap_factor=cap_factor, extra=self.cur.shape)
         f = self.nuisance_then_law(f, own_thread, cap_factor)
         f.seconds = time.perf_counter() - t0
         return f
@@ -300,11 +315,11 @@ class Campaign(Steps, Contradictions):
         if not f.ok or self.budget_hit:
             return f
         nzs = self.refit_nuisance(f.spec, f.params, f.nz, own_thread)
-        moved = self.evaluate(f.spec, f.effects, f.params, f.free, nzs)
+        moved = self.as_fitted(f, nzs=nzs)
         if not moved.rms < (1.0 - CRITERIA.least_gain) * f.rms:
             return f
         refit = self.fit(f.spec, f.effects, [f.params], nzs=nzs, own_thread=own_thread, max_iterations=30,
-                         cap_factor=cap_factor)
+                         cap_factor=cap_factor, extra=f.shape)
         return refit if refit.ok and refit.rms < moved.rms else moved
 
     def simulation_work(self, spec: ModelSpec, effects, params: dict, free, nzs: list) -> int:
@@ -344,12 +359,12 @@ class Campaign(Steps, Contradictions):
             if self.budget_hit:
                 break
             nzs = self.refit_nuisance(m.spec, m.params)
-            moved = self.evaluate(m.spec, m.effects, m.params, m.free, nzs)
+            moved = self.as_fitted(m, nzs=nzs)
             if not moved.rms < (1.0 - CRITERIA.least_gain) * m.rms:
                 break
             for r, nz in zip(self.records, nzs):
                 r.nz = dict(nz)
-            refit = self.fit(m.spec, m.effects, [m.params], max_iterations=30)
+            refit = self.fit(m.spec, m.effects, [m.params], max_iterations=30, extra=m.shape)
             m = refit if refit.ok and refit.rms < moved.rms else moved
         for r, nz in zip(self.records, m.nz):
             r.nz = dict(nz)
@@ -361,7 +376,7 @@ class Campaign(Steps, Contradictions):
         pooled over the records ``among`` (indices; default every record)."""
         if not m.ok:
             return float("inf")
-        pf = self.fit(m.spec, m.effects, [m.params], nzs=m.nz, parts=True)
+        pf = self.fit(m.spec, m.effects, [m.params], nzs=m.nz, parts=True, extra=m.shape)
         if not pf.ok:
             return float("inf")
         among = range(len(self.records)) if among is None else among
@@ -393,6 +408,8 @@ class Campaign(Steps, Contradictions):
                 self.stop = f"the most steps ({self.max_steps}) were taken"
         if not self.budget_hit:
             self.rival_law()
+        if not self.budget_hit:
+            self.finer_bank()
         if not self.budget_hit:
             self.wider_laws()
         if not self.budget_hit:
@@ -486,7 +503,8 @@ class Campaign(Steps, Contradictions):
         cur = self.cur
         other = _law_of(new, effect)
         factor = self.cap_factor_for(cur)
-        fm = self.nuisance_then_law(self.fit(new, cur.effects, starts, cap_factor=factor), cap_factor=factor)
+        fm = self.nuisance_then_law(self.fit(new, cur.effects, starts, cap_factor=factor, extra=cur.shape),
+                                    cap_factor=factor)
         held, bic = float("nan"), float("inf")
         if not fm.ok:
             ok, verdict = False, f"the fit failed: {fm.message}"
@@ -523,7 +541,7 @@ class Campaign(Steps, Contradictions):
             if m is None or not m.ok:
                 return m
             if id(m) not in carried:
-                carried[id(m)] = self.evaluate(m.spec, m.effects, m.params, m.free, m.nz, m.message, m.seconds)
+                carried[id(m)] = self.as_fitted(m)
             return carried[id(m)]
 
         self.fits = [whole(m) for m in self.fits]
@@ -545,7 +563,7 @@ class Campaign(Steps, Contradictions):
         self.say(f"fitting {self.cur.model} to the whole records")
         factor = self.cap_factor_for(self.cur)
         fitted = self.fit(self.cur.spec, self.cur.effects, [self.cur.params], nzs=self.cur.nz,
-                          max_iterations=WHOLE_RECORD_ITERATIONS, cap_factor=factor)
+                          max_iterations=WHOLE_RECORD_ITERATIONS, cap_factor=factor, extra=self.cur.shape)
         fitted = self.nuisance_then_law(fitted, cap_factor=factor)
         if fitted.ok and fitted.rms <= self.cur.rms:
             self.fits[-1] = self.cur = fitted
@@ -620,7 +638,8 @@ class Campaign(Steps, Contradictions):
         for e in effects:
             red = _without(cur.spec, e)
             effects = tuple(x for x in cur.effects if x != e)
-            rf = self.fit(red, effects, _reduced_starts(cur, red, self.records[0].sc), cap_factor=factor)
+            rf = self.fit(red, effects, _reduced_starts(cur, red, self.records[0].sc), cap_factor=factor,
+                          extra=cur.shape)
             rf = self.nuisance_then_law(rf, cap_factor=factor)
             if not rf.ok or self.budget_hit:
                 continue

@@ -37,7 +37,7 @@ class Contradictions:
         cur, r = self.cur, self.records[i]
         spec = cur.spec.for_experiment(r.trace.experiment)
         own = fit_model(r.trace, spec, cur.effects, [{**cur.params, **cur.nz[i]}, None], r.sc,
-                        nuisance=r.nuisance, work_cap=self.cap)
+                        nuisance=r.nuisance, work_cap=self.cap, extra=cur.shape)
         if not own.ok:
             return None, False, f"its own fit failed: {own.message}"
         dk = len([n for n in own.free if n not in NZ.NUISANCE])
@@ -61,7 +61,8 @@ class Contradictions:
             try:
                 nzs = [dict(r.alone.get("nz", r.nz)) for r in self.records]
                 own = [r.alone["law"] for r in self.records if r.alone and self.cur.spec == self.spec]
-                rest = self.fit(self.cur.spec, self.cur.effects, [self.cur.params, None] + own, nzs=nzs)
+                rest = self.fit(self.cur.spec, self.cur.effects, [self.cur.params, None] + own, nzs=nzs,
+                                extra=self.cur.shape)
                 if rest.ok:
                     rest = self.settle(rest)   # the nuisance and the law in turn
                 good = rest.ok and all(_gap(e, r.sigma) < CRITERIA.unexplained_gap * r.sigma

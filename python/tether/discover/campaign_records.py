@@ -65,6 +65,7 @@ class CampaignFit:
     ok: bool = True
     message: str = ""
     seconds: float = 0.0
+    shape: tuple = ()              # shape terms freed beyond the law's (Campaign.finer_bank), as ModelFit.shape
 
     @property
     def model(self) -> str:

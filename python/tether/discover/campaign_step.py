@@ -244,7 +244,7 @@ class Steps:
                 c.accepted, c.verdict = False, "slack never acts in the fitted model on any record"
         if c.accepted and effect == "hysteresis":
             params, terms = closed_loops(f.spec, f.params)
-            closed = self.evaluate(f.spec, f.effects, params, f.free, f.nz) if terms else f
+            closed = self.as_fitted(f, params=params) if terms else f
             c.accepted, c.verdict = loops_verdict(1.0, closed.rms, f.rms, f.free, terms, self.n, c.verdict)
         return c
 
