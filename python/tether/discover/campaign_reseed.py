@@ -9,7 +9,7 @@ import numpy as np
 
 from ..models import IWAN_EPS, IWAN_K
 from .fitting import fit_model
-from .judge import _shape_heldout_asked, _shape_judged, bic_change
+from .judge import _law_judged, _shape_heldout_asked, _shape_judged, bic_change
 from .laws import unrevealed
 from .records import Refinement
 from .rival import _bank_params, _finer_kept, _finer_spread, _slip_of, bank_cap_factor
@@ -24,45 +24,53 @@ class Reseeding:
         slip strains; a smooth friction loop needs more, and a bank made finer and fitted to every
         record at once stops far off (a tuning campaign of hysteresis and slack: 10.45, 4.78, 1.31 x
         noise, where the generator's law gives 0.97, 0.94, 1.02). Where a record is still missed,
-        the bank is made finer (rival._finer_spread, rival._finer_kept) and fitted, slip strains
-        too, first to the record that shows the hysteresis worst with its nuisance free, then to
-        every record jointly from there (the route the campaign's candidates take); kept as a finer
-        bank is in the one-record search (judge._shape_judged on the campaign's error in noise
-        units: a lower BIC and error, the held-out parts' prediction no worse where asked). Its
-        terms stay free in every later fit (CampaignFit.shape). docs/campaign-discovery.md."""
+        the bank is made finer (finer_fit) and kept as a finer bank is in the one-record search
+        (judge._shape_judged on the campaign's error in noise units: a lower BIC and error, the
+        held-out parts' prediction no worse where asked). Its terms stay free in every later fit
+        (CampaignFit.shape). docs/campaign-discovery.md."""
         cur = self.cur
-        bank = [n for n in IWAN_K if n in cur.free]
-        if (self.budget_hit or self.within_noise(cur) or cur.spec.hysteresis != "iwan" or not bank
-                or len(bank) >= len(IWAN_K)):
+        if self.budget_hit or self.within_noise(cur):
             return
+        out = self.finer_fit(cur)
+        if out is not None:
+            self.bank_judged(cur, *out)
+
+    def finer_fit(self, m):
+        """``m``'s Iwan bank made finer (rival._finer_spread, rival._finer_kept: sixteen elements,
+        every slip strain free) and fitted first to the record that shows the hysteresis worst, its
+        nuisance free, then to every record jointly from there (the route the campaign's candidates
+        take). (the fit or None where the lead's fit failed, why it failed, the bank's elements
+        before, the terms freed); None where ``m`` has no bank to make finer."""
+        bank = [n for n in IWAN_K if n in m.free]
+        if m.spec.hysteresis != "iwan" or not bank or len(bank) >= len(IWAN_K):
+            return None
         able = [i for i, r in enumerate(self.records) if not unrevealed(r.trace, "hysteresis")]
         if not able:
-            return
-        i = max(able, key=lambda j: cur.rms_records[j] / self.records[j].sigma)
+            return None
+        i = max(able, key=lambda j: m.rms_records[j] / self.records[j].sigma)
         lead = self.records[i]
-        k = np.array([float(cur.params.get(n, 0.0)) for n in bank])
-        e = np.array([float(cur.params[_slip_of(n)]) for n in bank])
+        k = np.array([float(m.params.get(n, 0.0)) for n in bank])
+        e = np.array([float(m.params[_slip_of(n)]) for n in bank])
         banks = [b for b in (_finer_spread(k, e, len(IWAN_K)), _finer_kept(k, e, len(IWAN_K))) if b is not None]
         if not banks:
-            return
+            return None
         self.say(f"a finer Iwan bank ({len(IWAN_K)} elements for {len(bank)}), fitted to {lead.name} first")
-        extra = tuple(cur.shape) + tuple(n for n in IWAN_K + IWAN_EPS if n not in cur.free and n not in cur.shape)
-        factor = self.cap_factor_for(cur) * bank_cap_factor(len(IWAN_K))
-        alone = fit_model(lead.trace, cur.spec.for_experiment(lead.trace.experiment), cur.effects,
-                          [{**cur.params, **lead.nz, **_bank_params(k2, e2)} for k2, e2 in banks], lead.sc,
+        extra = tuple(m.shape) + tuple(n for n in IWAN_K + IWAN_EPS if n not in m.free and n not in m.shape)
+        factor = self.cap_factor_for(m) * bank_cap_factor(len(IWAN_K))
+        alone = fit_model(lead.trace, m.spec.for_experiment(lead.trace.experiment), m.effects,
+                          [{**m.params, **m.nz[i], **_bank_params(k2, e2)} for k2, e2 in banks], lead.sc,
                           nuisance=lead.nuisance, extra=extra, deadline=self.deadline,
                           work_cap=None if self.cap is None else self.cap * factor)
-        fm = None
-        if alone.ok:
-            nzs = [dict(r.nz) for r in self.records]
-            nzs[i] = dict(alone.nuisance)
-            fm = self.fit(cur.spec, cur.effects, [{**cur.params, **_law_only(alone.params, cur.spec)}],
-                          nzs=nzs, extra=extra, cap_factor=factor)
-            fm = self.nuisance_then_law(fm, cap_factor=factor)
-        self.bank_judged(cur, fm, len(bank), tuple(n for n in extra if n not in cur.shape),
-                         fm.message if fm is not None else f"on {lead.name}: {alone.message}")
+        terms = tuple(n for n in extra if n not in m.shape)
+        if not alone.ok:
+            return None, f"on {lead.name}: {alone.message}", len(bank), terms
+        nzs = [dict(nz) for nz in m.nz]
+        nzs[i] = dict(alone.nuisance)
+        fm = self.fit(m.spec, m.effects, [{**m.params, **_law_only(alone.params, m.spec)}], nzs=nzs, extra=extra,
+                      cap_factor=factor)
+        return self.nuisance_then_law(fm, cap_factor=factor), fm.message, len(bank), terms
 
-    def bank_judged(self, cur, fm, elements: int, terms: tuple, failed: str) -> None:
+    def bank_judged(self, cur, fm, failed: str, elements: int, terms: tuple) -> None:
         """The finer bank ``fm`` (None where its fit to the lead record failed, ``failed`` saying why)
         judged against ``cur`` (finer_bank), put on record, and kept where it passes."""
         held, bic = float("nan"), float("nan")
@@ -88,3 +96,16 @@ class Reseeding:
             self.cur_held = held if self.cur is fm and math.isfinite(held) else self.heldout_of(self.cur)
             self.fits.append(self.cur)
 
+    def reseeded_rival(self, cur, fm, held: float, bic: float, verdict: str, law: str):
+        """The rival hysteresis law's fit ``fm``, better on every record than ``cur`` but worse on the
+        held-out parts, after its bank is made finer (finer_fit), judged again as the rival is
+        (judge._law_judged): the one-record search's rival._reseeded_rival. (fit, held-out error,
+        BIC change, kept, verdict), ``fm``'s own where there is no finer bank to fit."""
+        out = self.finer_fit(fm)
+        if out is None or out[0] is None or not out[0].ok:
+            return fm, held, bic, False, verdict
+        fm2 = out[0]
+        bic2 = bic_change(cur, fm2, self.n)
+        held2 = self.heldout_of(fm2) if bic2 < 0.0 and fm2.rms < cur.rms else float("nan")
+        ok2, verdict2 = _law_judged(cur.rms, fm2.rms, bic2, self.cur_held, held2, 1.0, law)
+        return fm2, held2, bic2, ok2, verdict2 + " (its Iwan bank made finer)"
