@@ -433,25 +433,31 @@ def _hysteresis_campaign(folder: Path):
     return camp
 
 
+def _hysteresis_named(camp, fit) -> None:
+    """``camp`` as after a step that named the hysteresis with ``fit`` (settled) from its start model."""
+    from tether.discover.campaign import CampaignStep
+
+    start = camp.cur
+    camp.cur = camp.settle(fit)
+    camp.cur_held = camp.heldout_of(camp.cur)
+    camp.fits.append(camp.cur)
+    camp.steps = [CampaignStep(effect="hysteresis", model_before=start.model, model_after=camp.cur.model,
+                               rms_before=start.rms, rms_after=camp.cur.rms, records_before=start.rms_records,
+                               records_after=camp.cur.rms_records)]
+
+
 def test_the_rival_hysteresis_law_is_fitted_in_its_place_at_the_end(tmp_path):
     """The one-record search's rival law on the campaign: the hysteresis step chose Bouc-Wen (here
     set so: the step's fits of both laws on record, Bouc-Wen in the model), which leaves the load
     test of the generator's Iwan friction at 2.6 x its noise; at the end the Iwan bank is fitted in
     its place from its own fit of the step, kept by the rival-law rule (a lower BIC and error, the
     held-out parts no worse), and brings every record within 1.5 x its noise."""
-    from tether.discover.campaign import CampaignStep
-
     camp = _hysteresis_campaign(tmp_path)
     start = camp.cur
     fits = {law: camp.fit(parse_model(f"linear+{law}"), ("hysteresis",), [start.params, None])
             for law in ("boucwen", "iwan")}
     camp.rivals = {"hysteresis": {law: f.params for law, f in fits.items()}}
-    camp.cur = camp.settle(fits["boucwen"])
-    camp.cur_held = camp.heldout_of(camp.cur)
-    camp.fits.append(camp.cur)
-    camp.steps = [CampaignStep(effect="hysteresis", model_before="linear", model_after=camp.cur.model,
-                               rms_before=start.rms, rms_after=camp.cur.rms, records_before=start.rms_records,
-                               records_after=camp.cur.rms_records)]
+    _hysteresis_named(camp, fits["boucwen"])
     before = [e / r.sigma for e, r in zip(camp.cur.rms_records, camp.records)]
     assert max(before) > 2.0, before
     camp.rival_law()
@@ -469,7 +475,7 @@ def test_a_finer_iwan_bank_fitted_to_the_record_that_shows_it_worst_and_then_joi
     the generator's own friction would; its terms stay free in the fits that follow (settle), and a
     bank already of sixteen is left alone. A rival law's fit that fits better but predicts the
     held-out parts worse is judged again with its bank made finer (reseeded_rival)."""
-    from tether.discover.campaign import Campaign, CampaignStep
+    from tether.discover.campaign import Campaign
     from tether.models import IWAN_EPS, IWAN_K
 
     seed, experiments = 3, ("free_vibration", "load_unload")
@@ -480,12 +486,7 @@ def test_a_finer_iwan_bank_fitted_to_the_record_that_shows_it_worst_and_then_joi
     camp = Campaign(traces, "linear", None, 5, 2, None, None, False)
     camp.fit_start()
     start = camp.cur
-    camp.cur = camp.settle(camp.fit(parse_model("linear+iwan"), ("hysteresis",), [start.params, None]))
-    camp.cur_held = camp.heldout_of(camp.cur)
-    camp.fits.append(camp.cur)
-    camp.steps = [CampaignStep(effect="hysteresis", model_before="linear", model_after=camp.cur.model,
-                               rms_before=start.rms, rms_after=camp.cur.rms, records_before=start.rms_records,
-                               records_after=camp.cur.rms_records)]
+    _hysteresis_named(camp, camp.fit(parse_model("linear+iwan"), ("hysteresis",), [start.params, None]))
     eight = [e / r.sigma for e, r in zip(camp.cur.rms_records, camp.records)]
     assert sum(n in camp.cur.free for n in IWAN_K) == 8 and max(eight) > 5.0, eight
     # the same move on a rival law's fit, judged as the rival is against the law in place (here
