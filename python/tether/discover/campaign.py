@@ -395,25 +395,16 @@ class Campaign(Steps, Contradictions, Reseeding):
     # ---- the run
     def run(self) -> CampaignDiscovery:
         self.fit_start()
-        while len(self.steps) < self.max_steps and not self.budget_hit:
-            if self.within_noise(self.cur):
-                self.stop = "every record is reproduced within the noise"
-                break
-            if not self.step():
-                break
-        else:
-            if self.budget_hit:
-                self.stop = self.stop or f"the time budget of {self.budget:.0f} s was spent"
-            elif not self.stop:
-                self.stop = f"the most steps ({self.max_steps}) were taken"
-        if not self.budget_hit:
-            self.rival_law()
-        if not self.budget_hit:
-            self.finer_bank()
-        if not self.budget_hit:
-            self.wider_laws()
-        if not self.budget_hit:
-            self.retest_after_refinements()
+        self.add_effects()
+        kept = self.last_stages()
+        if kept and not self.budget_hit and not self.within_noise(self.cur) and len(self.steps) < self.max_steps:
+            # an effect refused beside a law's wrong form may earn its place once the form is right,
+            # as one named beside it may not (retest_after_refinements)
+            self.say(f"the steps resume beside the refined laws ({', '.join(kept)})")
+            named = len(self.named())
+            self.add_effects()
+            if len(self.named()) > named:
+                self.last_stages()
         if any(r.every > 1 for r in self.records):
             self.on_whole_records()
         contradicting, alone = self.contradictions()
@@ -423,6 +414,30 @@ class Campaign(Steps, Contradictions, Reseeding):
                                  stop_reason=self.stop, seconds=time.perf_counter() - self.t_begin,
                                  contradicting=contradicting, alone=alone, removals=self.removals,
                                  refinements=self.refinements)
+
+    def add_effects(self) -> None:
+        """The steps, until one adds nothing, every record is within the noise, the most steps are
+        taken or the budget is spent; the reason on record (stop)."""
+        while len(self.steps) < self.max_steps and not self.budget_hit:
+            if self.within_noise(self.cur):
+                self.stop = "every record is reproduced within the noise"
+                return
+            if not self.step():
+                return
+        if self.budget_hit:
+            self.stop = self.stop or f"the time budget of {self.budget:.0f} s was spent"
+        else:
+            self.stop = f"the most steps ({self.max_steps}) were taken"
+
+    def last_stages(self) -> list:
+        """Where a record is still missed after the steps: the rival hysteresis law, a finer Iwan
+        bank, the wider laws, then the named effects tested again beside what changed; the effects
+        whose law a stage changed (kept refinements)."""
+        first = len(self.refinements)
+        for stage in (self.rival_law, self.finer_bank, self.wider_laws, self.retest_after_refinements):
+            if not self.budget_hit:
+                stage()
+        return sorted({r.effect for r in self.refinements[first:] if r.accepted})
 
     def per_record(self, m: CampaignFit) -> str:
         """Each record's error in units of its noise, for the progress lines."""
