@@ -513,8 +513,8 @@ class Campaign(Steps, Contradictions, Reseeding):
         """``new`` (the current model with another law of ``effect`` in ``law``'s place) fitted to
         every record from ``starts`` (each record's nuisance refitted once with it) and kept as a
         rival law is (judge._law_judged on the campaign's error in noise units: a lower BIC and error,
-        the held-out parts' prediction no worse; a hysteresis law better on the records but worse on
-        the held-out parts is judged again with its Iwan bank made finer, reseeded_rival); on record as a Refinement whose terms are the fit's
+        the held-out parts' prediction no worse; a hysteresis rival refused is judged again with its
+        Iwan bank made finer, reseeded_rival); on record as a Refinement whose terms are the fit's
         free terms ``reported`` selects."""
         cur = self.cur
         other = _law_of(new, effect)
@@ -529,7 +529,7 @@ class Campaign(Steps, Contradictions, Reseeding):
             if bic < 0.0 and fm.rms < cur.rms:
                 held = self.heldout_of(fm)
             ok, verdict = _law_judged(cur.rms, fm.rms, bic, self.cur_held, held, 1.0, law)
-            if not ok and effect == "hysteresis" and bic < 0.0 and fm.rms < cur.rms and not self.budget_hit:
+            if not ok and effect == "hysteresis" and not self.budget_hit:
                 self.say(f"law of {effect}, {law} -> {other}: {verdict}; its Iwan bank made finer first")
                 fm, held, bic, ok, verdict = self.reseeded_rival(cur, fm, held, bic, verdict, law)
         ok = ok and not self.budget_hit
