@@ -22,7 +22,8 @@ step every record's error before and after says which record revealed the effect
 rule on that record's samples). Each named effect is re-tested once a later one is in
 (Campaign.retest_named); where a record is still missed at the end, the Iwan bank is made finer
 (Campaign.finer_bank: on the record that shows it worst first, then jointly; its terms stay free in
-later fits, CampaignFit.shape) and the named effects' wider laws are tried (Campaign.wider_laws); records beyond their share of the search's samples are searched
+later fits, CampaignFit.shape) and the named effects' wider laws are tried (Campaign.wider_laws),
+and where one of these keeps a law the steps resume once (Campaign.resume_steps); records beyond their share of the search's samples are searched
 thinned and the final model fitted to every sample (Campaign.on_whole_records). A record the
 final model misses and whose own fit of the law earns its parameters against the shared one is
 flagged as contradicting the others. docs/campaign-discovery.md tells the design and the measured
@@ -396,15 +397,7 @@ class Campaign(Steps, Contradictions, Reseeding):
     def run(self) -> CampaignDiscovery:
         self.fit_start()
         self.add_effects()
-        kept = self.last_stages()
-        if kept and not self.budget_hit and not self.within_noise(self.cur) and len(self.steps) < self.max_steps:
-            # an effect refused beside a law's wrong form may earn its place once the form is right,
-            # as one named beside it may not (retest_after_refinements)
-            self.say(f"the steps resume beside the refined laws ({', '.join(kept)})")
-            named = len(self.named())
-            self.add_effects()
-            if len(self.named()) > named:
-                self.last_stages()
+        self.resume_steps(self.last_stages())
         if any(r.every > 1 for r in self.records):
             self.on_whole_records()
         contradicting, alone = self.contradictions()
@@ -428,6 +421,21 @@ class Campaign(Steps, Contradictions, Reseeding):
             self.stop = self.stop or f"the time budget of {self.budget:.0f} s was spent"
         else:
             self.stop = f"the most steps ({self.max_steps}) were taken"
+
+    def resume_steps(self, kept: list) -> None:
+        """The steps once more where the last stages kept a law (``kept``: its effects) and a record is
+        still missed: an effect refused beside a law's wrong form may earn its place once the form is
+        right, as one named beside it may not (retest_after_refinements). The last stages again where
+        an effect is added. (A tuning campaign of creep, hysteresis and slack: creep refused on its
+        held-out parts beside Bouc-Wen, passed beside the finer Iwan bank, every record within 1.02 x
+        its noise; docs/campaign-discovery.md.)"""
+        if not kept or self.budget_hit or self.within_noise(self.cur) or len(self.steps) >= self.max_steps:
+            return
+        self.say(f"the steps resume beside the refined laws ({', '.join(kept)})")
+        named = len(self.named())
+        self.add_effects()
+        if len(self.named()) > named:
+            self.last_stages()
 
     def last_stages(self) -> list:
         """Where a record is still missed after the steps: the rival hysteresis law, a finer Iwan
@@ -530,7 +538,6 @@ class Campaign(Steps, Contradictions, Reseeding):
                 held = self.heldout_of(fm)
             ok, verdict = _law_judged(cur.rms, fm.rms, bic, self.cur_held, held, 1.0, law)
             if not ok and effect == "hysteresis" and not self.budget_hit:
-                self.say(f"law of {effect}, {law} -> {other}: {verdict}; its Iwan bank made finer first")
                 fm, held, bic, ok, verdict = self.reseeded_rival(cur, fm, held, bic, verdict, law)
         ok = ok and not self.budget_hit
         terms = tuple(k for k in fm.free if reported(k)) if fm.ok else ()

@@ -106,6 +106,8 @@ class Reseeding:
         is no finer bank to fit."""
         out = self.finer_fit(fm)
         if out is None or out[0] is None or not out[0].ok:
+            if out is not None:
+                self.say(f"  its finer bank's fit failed: {out[1]}")
             return fm, held, bic, False, verdict
         fm2 = out[0]
         bic2 = bic_change(cur, fm2, self.n)
