@@ -371,6 +371,19 @@ class Campaign(Steps, Contradictions, Reseeding):
             r.nz = dict(nz)
         return m
 
+    def adopt(self, m: CampaignFit, held: float = float("nan")) -> None:
+        """``m`` settled (settle) as the current model, on record in ``fits``; its held-out error
+        ``held`` where the settling kept ``m`` itself and ``held`` was measured, else measured again."""
+        self.cur = self.settle(m)
+        self.cur_held = held if self.cur is m and not math.isnan(held) else self.heldout_of(self.cur)
+        self.fits.append(self.cur)
+
+    def worst_record(self, m: CampaignFit, among: Sequence[int] | None = None) -> int:
+        """Of the records ``among`` (indices; every record where None), the one ``m`` misses most in
+        units of its noise."""
+        among = range(len(self.records)) if among is None else among
+        return max(among, key=lambda j: m.rms_records[j] / self.records[j].sigma)
+
     def heldout_of(self, m: CampaignFit, among: Sequence[int] | None = None) -> float:
         """The campaign's held-out error in noise units: each record's held-out part predicted by the
         law fitted to every record's first part (the nuisance held at the whole records' values),
@@ -470,7 +483,7 @@ class Campaign(Steps, Contradictions, Reseeding):
             able = [i for i, r in enumerate(self.records) if effect in candidates(r.trace)]
             if not able:
                 continue
-            i = max(able, key=lambda j: cur.rms_records[j] / self.records[j].sigma)
+            i = self.worst_record(cur, able)
             lead = self.records[i]
             new = _with_law(cur.spec, effect, other)
             base = ModelFit(spec=cur.spec.for_experiment(lead.trace.experiment), effects=cur.effects,
@@ -545,9 +558,7 @@ class Campaign(Steps, Contradictions, Reseeding):
                                            {k: float(fm.params[k]) for k in terms}, law=f"{law} -> {other}"))
         self.say(f"law of {effect}, {law} -> {other}: {'kept' if ok else 'not kept'}: {verdict}")
         if ok:
-            self.cur = self.settle(fm)
-            self.cur_held = held if self.cur is fm else self.heldout_of(self.cur)
-            self.fits.append(self.cur)
+            self.adopt(fm, held)
 
     def on_whole_records(self) -> None:
         """A search on thinned records carried to the whole records (the one-record search's
@@ -622,10 +633,8 @@ class Campaign(Steps, Contradictions, Reseeding):
         if not cur.ok:
             raise DiscoveryError(f"the start model {self.spec.canonical} does not fit the campaign jointly: "
                                  f"{cur.message}")
-        self.cur = self.settle(cur)
+        self.adopt(cur)
         self.n_free_start = self.cur.n_free
-        self.cur_held = self.heldout_of(self.cur)
-        self.fits.append(self.cur)
         self.say(f"{self.cur.model}: campaign RMS error {self.cur.rms:.2f} x noise (" + ", ".join(
             f"{r.name} {e / r.sigma:.2f}" for r, e in zip(self.records, self.cur.rms_records)) + ")")
 
@@ -678,9 +687,7 @@ class Campaign(Steps, Contradictions, Reseeding):
                 continue
             self.removals.append(Removal(e, cur.model, rf.model, cur.rms, rf.rms,
                                          f"next to {beside} it no longer earns its parameters: {why}"))
-            self.cur = self.settle(rf)
-            self.cur_held = self.heldout_of(self.cur)
-            self.fits.append(self.cur)
+            self.adopt(rf)
             return True
         return False
 

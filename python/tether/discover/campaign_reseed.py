@@ -3,21 +3,16 @@ mixin of discover.campaign.Campaign."""
 
 from __future__ import annotations
 
-import math
-
-import numpy as np
-
 from ..models import IWAN_EPS, IWAN_K
 from .fitting import fit_model
 from .judge import _law_judged, _shape_heldout_asked, _shape_judged, bic_change
-from .laws import unrevealed
 from .records import Refinement
-from .rival import _bank_params, _finer_kept, _finer_spread, _slip_of, bank_cap_factor
+from .rival import bank_cap_factor, finer_banks
 from .campaign_records import _law_only
 
 
 class Reseeding:
-    """Needs Campaign's records, cur, cur_held, fits, refinements, fit, settle, heldout_of."""
+    """Needs Campaign's records, cur, cur_held, refinements, fit, adopt, heldout_of, worst_record."""
 
     def finer_bank(self) -> None:
         """The campaign's search fits an Iwan bank of IWAN_FIT_ELEMENTS elements on a fixed grid of
@@ -44,21 +39,17 @@ class Reseeding:
         bank = [n for n in IWAN_K if n in m.free]
         if m.spec.hysteresis != "iwan" or not bank or len(bank) >= len(IWAN_K):
             return None
-        able = [i for i, r in enumerate(self.records) if not unrevealed(r.trace, "hysteresis")]
-        if not able:
+        able = self.able_to_reveal("hysteresis")
+        banks = finer_banks(m.params, bank)
+        if able == () or not banks:
             return None
-        i = max(able, key=lambda j: m.rms_records[j] / self.records[j].sigma)
+        i = self.worst_record(m, able)
         lead = self.records[i]
-        k = np.array([float(m.params.get(n, 0.0)) for n in bank])
-        e = np.array([float(m.params[_slip_of(n)]) for n in bank])
-        banks = [b for b in (_finer_spread(k, e, len(IWAN_K)), _finer_kept(k, e, len(IWAN_K))) if b is not None]
-        if not banks:
-            return None
         self.say(f"a finer Iwan bank ({len(IWAN_K)} elements for {len(bank)}), fitted to {lead.name} first")
         extra = tuple(m.shape) + tuple(n for n in IWAN_K + IWAN_EPS if n not in m.free and n not in m.shape)
         factor = self.cap_factor_for(m) * bank_cap_factor(len(IWAN_K))
         alone = fit_model(lead.trace, m.spec.for_experiment(lead.trace.experiment), m.effects,
-                          [{**m.params, **m.nz[i], **_bank_params(k2, e2)} for k2, e2 in banks], lead.sc,
+                          [{**m.params, **m.nz[i], **b} for b in banks], lead.sc,
                           nuisance=lead.nuisance, extra=extra, deadline=self.deadline,
                           work_cap=None if self.cap is None else self.cap * factor)
         terms = tuple(n for n in extra if n not in m.shape)
@@ -92,9 +83,7 @@ class Reseeding:
         self.say(f"  a finer Iwan bank: {'kept' if ok else 'not kept'}: {verdict}"
                  + (f" ({self.per_record(fm)})" if fm else ""))
         if ok:
-            self.cur = self.settle(fm)
-            self.cur_held = held if self.cur is fm and math.isfinite(held) else self.heldout_of(self.cur)
-            self.fits.append(self.cur)
+            self.adopt(fm, held)
 
     def reseeded_rival(self, cur, fm, held: float, bic: float, verdict: str, law: str):
         """The rival hysteresis law's fit ``fm``, refused against ``cur``, after its bank is made finer

@@ -33,7 +33,7 @@ class Steps:
             able = [i for i, r in enumerate(self.records) if e in candidates(r.trace)]
             if not able or e in self.cur.effects:
                 continue
-            i = max(able, key=lambda j: self.cur.rms_records[j] / self.records[j].sigma)
+            i = self.worst_record(self.cur, able)
             for new in _models_for(self.cur.spec, e, self.records[i].trace):
                 if payload and new.hysteresis == "kawabata":
                     continue
@@ -142,16 +142,14 @@ class Steps:
         alone gains (docs/campaign-discovery.md, fifth round); where it lowers the campaign's error
         it is settled and carried on as the current state, against which every candidate is judged."""
         cur = self.cur
-        i = max(range(len(self.records)), key=lambda j: cur.rms_records[j] / self.records[j].sigma)
+        i = self.worst_record(cur)
         f = self.candidate_fit("", cur.spec, cur.effects, i, self.starts_on(i, cur.spec), cap_factor=factor)
         kept = f.ok and f.rms < cur.rms and not self.budget_hit
         self.say(f"  the current model {cur.model} fitted as a candidate is (lead {self.records[i].name}): "
                  f"{cur.rms:.2f} -> {f.rms:.2f} x noise ({self.per_record(f) if f.ok else f.message}): "
                  + ("carried on" if kept else "kept as it was") + f" ({f.seconds:.1f} s)")
         if kept:
-            self.cur = self.settle(f)
-            self.cur_held = self.heldout_of(self.cur)
-            self.fits.append(self.cur)
+            self.adopt(f)
         return {"rmse_over_noise_before": cur.rms, "rmse_over_noise_refit": f.rms, "kept": kept}
 
     def heldout_tests(self, passing: list) -> CampaignCandidate | None:

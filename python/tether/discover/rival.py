@@ -352,6 +352,16 @@ def _split_in_two(k: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return np.r_[k / 2, k / 2], np.r_[e * (1 - IWAN_SPLIT), e * (1 + IWAN_SPLIT)]
 
 
+def finer_banks(params: dict, bank: Sequence[str]) -> list[dict]:
+    """The finer banks of IWAN_ELEMENTS elements from the bank of the elements ``bank`` (their
+    stiffnesses' names) in ``params``: _finer_spread's and _finer_kept's, as parameters, those with
+    room."""
+    k = np.array([float(params.get(n, 0.0)) for n in bank])
+    e = np.array([float(params[_slip_of(n)]) for n in bank])
+    banks = (_finer_spread(k, e, len(IWAN_K)), _finer_kept(k, e, len(IWAN_K)))
+    return [_bank_params(k2, e2) for k2, e2 in (b for b in banks if b is not None)]
+
+
 def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
                say: Callable[[str], None]):
     """The search fits an Iwan bank of IWAN_FIT_ELEMENTS elements; a smooth hysteresis loop (a
@@ -372,12 +382,10 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
     bank = [n for n in IWAN_K if n in cur.free]
     if len(bank) >= len(IWAN_K):
         return cur, cur_held, None
-    k = np.array([float(cur.params.get(n, 0.0)) for n in bank])
-    e = np.array([float(cur.params[_slip_of(n)]) for n in bank])
-    banks = [b for b in (_finer_spread(k, e, len(IWAN_K)), _finer_kept(k, e, len(IWAN_K))) if b is not None]
+    banks = finer_banks(cur.params, bank)
     if not banks:
         return cur, cur_held, None
-    starts = [{**cur.params, **_bank_params(k2, e2)} for k2, e2 in banks]
+    starts = [{**cur.params, **b} for b in banks]
     terms = tuple(n for n in IWAN_K + IWAN_EPS if n not in cur.free)
     extra = tuple(cur.shape) + tuple(n for n in IWAN_K[len(bank):] + IWAN_EPS if n not in cur.shape)
     cap_factor = bank_cap_factor(len(IWAN_K))
