@@ -535,6 +535,13 @@ class _Rig:
 # ----------------------------------------------------------------------------------------------
 # Builders
 # ----------------------------------------------------------------------------------------------
+def _blas_free(x):
+    """x rounded to 9 significant digits. A value from a BLAS-backed routine (``signal.lsim``)
+    differs in its last bits between BLAS kernels (SkylakeX against Haswell); rounded, the draw
+    is the same on every machine."""
+    return float(f"{x:.9g}")
+
+
 def _times(rate, duration, rng, jitter=0.0):
     n = int(round(duration * rate)) + 1
     t = np.arange(n) / rate
@@ -654,7 +661,7 @@ def _dynamic(experiment, effects, P, rate, rng):
             scale = P["slack_peak_factor"] * u_b / max(1e-12, -xl.min())
         else:
             scale = P["peak_factor"] * u_b / max(1e-12, np.abs(xl).max())
-        force = shape * scale
+        force = shape * _blas_free(scale)
         hidden.update(excitation=P["excitation"], band_Hz=[flo, fhi], force_scale_N=float(scale))
         P["_desc_exc"] = desc_exc
 
