@@ -40,3 +40,34 @@ def test_a_polynomial_of_the_order_is_reproduced_with_its_derivatives():
 def test_impossible_windows_are_refused_with_the_values(window, order, deriv, n):
     with pytest.raises(ValueError, match=f"window {window}, order {order}, deriv {deriv}"):
         savgol(np.zeros(n), window, order, deriv=deriv)
+
+
+@pytest.mark.parametrize("window, order, cycles_per_sample", [(7, 3, 0.08), (7, 3, 0.02), (17, 4, 0.01), (31, 4, 0.03)])
+def test_the_gain_on_a_tone_is_what_the_filter_does_to_it(window, order, cycles_per_sample):
+    """savgol_gain against scipy's filter run on a sampled tone and compared with the tone's exact
+    derivatives, away from the ends."""
+    from tether.savgol import savgol_gain
+
+    n, w = 2000, 2 * np.pi * cycles_per_sample
+    k = np.arange(n)
+    exact = (np.cos(w * k), -w * np.sin(w * k), -w * w * np.cos(w * k))
+    for deriv in range(3):
+        got = savgol_filter(exact[0], window, order, deriv=deriv)[window:-window]
+        ratio = np.dot(got, exact[deriv][window:-window]) / np.dot(exact[deriv][window:-window], exact[deriv][window:-window])
+        assert savgol_gain(window, order, deriv, cycles_per_sample) == pytest.approx(ratio, rel=1e-9)
+
+
+def test_the_kinematics_of_a_record_with_few_samples_a_period_follow_its_tone():
+    """8 Hz at 100 Hz (12.5 samples a period): the filter alone gives 0.81 of the acceleration; the
+    kinematics divide its gain out, so a noise-free tone's x, v and a are its own."""
+    from tether.fit.kinematics import kinematics
+    from tether.traces import Trace
+
+    t = np.arange(0.0, 10.0, 0.01)
+    w = 2 * np.pi * 8.0
+    tr = Trace.from_arrays(t, experiment="free_vibration", length_m=1.0, payload_mass_kg=1.0,
+                           displacement=0.05 * np.cos(w * t))
+    K = kinematics(tr, 8.0)
+    u = K.use
+    for got, want in ((K.x, 0.05 * np.cos(w * t)), (K.v, -0.05 * w * np.sin(w * t)), (K.a, -0.05 * w * w * np.cos(w * t))):
+        assert np.max(np.abs(got[u] - want[u])) < 1e-6 * np.max(np.abs(want))

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-__all__ = ["savgol"]
+__all__ = ["savgol", "savgol_gain"]
 
 _EPS = np.finfo(float).eps
 
@@ -36,6 +36,17 @@ def savgol(y, window: int, order: int, deriv: int = 0, delta: float = 1.0) -> np
         poly = _derivative(_polyfit(pos, y[first:first + window], order), deriv)
         out[first + at] = _polyval(poly, at.astype(float)) / delta ** deriv
     return out
+
+
+def savgol_gain(window: int, order: int, deriv: int, cycles_per_sample: float) -> float:
+    """What the centred filter gives on a sampled tone of ``cycles_per_sample``, over the tone's
+    exact derivative of order ``deriv`` (1 where the window's polynomial follows the tone; below 1
+    where the window spans a good part of its period)."""
+    h = window // 2
+    w = _weights(window, order, deriv, 1.0)
+    phase = 2 * math.pi * cycles_per_sample
+    response = np.sum(w * np.exp(1j * phase * np.arange(-h, window - h)))
+    return float((response / (1j * phase) ** deriv).real)
 
 
 def _weights(window: int, order: int, deriv: int, delta: float) -> np.ndarray:
