@@ -411,9 +411,13 @@ def test_idle_iwan_elements_below_the_live_ones_move_into_their_gaps(tmp_path):
 def test_a_finer_iwan_bank_follows_friction_spread_over_more_elements(tmp_path):
     """The generator's free vibration (seed 27, noise 1e-5 m) has twelve Jenkins elements; the
     search fits eight. From tether.fit's estimate and the idle elements' restart the bank of eight
-    stays above the noise (measured 1.48 x); finer_bank splits it into sixteen and fits every
-    stiffness and slip strain, which takes the model to the noise (measured 1.03 x), as the
-    generator's own twelve elements would. A bank already using every element is left alone."""
+    stays above the noise (measured 1.45-1.48 x); finer_bank splits it into sixteen and fits every
+    stiffness and slip strain, which takes the model near the noise, as the generator's own twelve
+    elements would. Where the fit of sixteen stops depends on the last bits of the BLAS kernel
+    (1.05 x with Haswell's, 1.21 x with SkylakeX's: docs/reproducibility.md), so the bound is
+    the largest of those with a margin, and the gap above the noise must shrink by a quarter at
+    least (measured: to 0.31 and 0.66 of the bank of eight's). A bank already using every element
+    is left alone."""
     from tether.models import IWAN_EPS, IWAN_K, parse_model
 
     stem, gen = _write(tmp_path, "fv_iwan", "free_vibration", {"hysteresis"}, 27, noise=1e-5, rate=200.0,
@@ -434,7 +438,11 @@ def test_a_finer_iwan_bank_follows_friction_spread_over_more_elements(tmp_path):
     new, new_held, rec = rival.finer_bank(tr, part, first, eight, held8, sigma, fit, lines.append)
     assert rec is not None and rec.accepted and rec.finer, lines
     assert all(n in new.free for n in IWAN_K + IWAN_EPS)
-    assert new.rms < 1.1 * sigma, new.rms / sigma
+
+    def gap(rms):                                   # above the noise, in sigma
+        return math.sqrt(max(rms ** 2 - sigma ** 2, 0.0)) / sigma
+
+    assert new.rms < 1.3 * sigma and gap(new.rms) < 0.75 * gap(eight.rms), (new.rms / sigma, eight.rms / sigma)
     live = [n for n in IWAN_K if new.params[n] >= rival.IWAN_IDLE_SHARE * sum(new.params[k] for k in IWAN_K)]
     assert len(live) > 8, new.params
     # (judged against half the noise, so that it is not left alone for being within the noise)
