@@ -63,8 +63,8 @@ def kinematics(trace: Trace, f_dom: float) -> Kinematics:
     if len(y) <= win:
         win = max(5, (len(y) - 1) | 1 if (len(y) - 1) % 2 else len(y) - 2)
     order = 4 if win >= 9 else 3
-    # each divided by the filter's gain on the dominant tone: a window of 7 over 12.5 samples a
-    # period gives 0.81 of the acceleration, and the stiffness it implies is as much too low
+    # each divided by the filter's gain on the dominant tone: a window long against the period
+    # would bias the equation error's stiffness low (docs/reproducibility.md)
     xs, v, a = (savgol(y, win, order, deriv=d, delta=dt) / savgol_gain(win, order, d, f_dom * dt) for d in range(3))
     use = np.zeros(len(y), bool)
     use[win:len(y) - win] = True
