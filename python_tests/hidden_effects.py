@@ -661,7 +661,8 @@ def _dynamic(experiment, effects, P, rate, rng):
             scale = P["slack_peak_factor"] * u_b / max(1e-12, -xl.min())
         else:
             scale = P["peak_factor"] * u_b / max(1e-12, np.abs(xl).max())
-        force = shape * _blas_free(scale)
+        scale = _blas_free(scale)
+        force = shape * scale
         hidden.update(excitation=P["excitation"], band_Hz=[flo, fhi], force_scale_N=float(scale))
         P["_desc_exc"] = desc_exc
 
