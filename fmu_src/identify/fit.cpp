@@ -186,6 +186,7 @@ struct Counters {
     long evaluations = 0;
     long jacobian_evaluations = 0; // of evaluations: the finite-difference Jacobians' columns
     int iterations = 0;
+    long held_columns = 0; // Jacobian columns held at zero: no step near theta simulated (rescue_column)
     std::vector<double> history;
 };
 
@@ -205,10 +206,31 @@ bool one_sided_column(const Problem &P, const VectorXd &th, const VectorXd &r, i
     return true;
 }
 
+// Shorter steps tried, each side, where a column's step h failed both ways: a point at the edge of
+// where the model simulates (a runaway, an integrator that gives up) has nearer neighbours that do
+constexpr int KT_RESCUE_STEPS = 3;
+constexpr double KT_RESCUE_SHRINK = 8.0;
+
+// column j of the Jacobian where its difference step h failed to simulate both ways: by one-sided
+// differences with steps h/8, h/64, ... (KT_RESCUE_STEPS of them, each side); where none simulates,
+// held at zero (the fit then keeps parameter j where it is for this iteration, and its interval at
+// the optimum is unbounded) and counted in C.held_columns
+void rescue_column(const Problem &P, const VectorXd &th, const VectorXd &r, int j, double h, MatrixXd &J, Counters &C)
+{
+    double step = h;
+    for (int i = 0; i < KT_RESCUE_STEPS; ++i) {
+        step /= KT_RESCUE_SHRINK;
+        if (one_sided_column(P, th, r, j, step, J, C) || one_sided_column(P, th, r, j, -step, J, C)) return;
+    }
+    J.col(j).setZero();
+    ++C.held_columns;
+}
+
 // central (or forward) difference Jacobian at theta (r = residuals there). A central pair that
 // would leave the box becomes a one-sided difference into it; a point that fails to simulate is
-// replaced by the other side's. offset_measured's points are not simulated where the outputs at
-// theta are kept (RawOutputs): the same residuals, the same bits.
+// replaced by the other side's, and a column neither side gives by rescue_column. offset_measured's
+// points are not simulated where the outputs at theta are kept (RawOutputs): the same residuals, the
+// same bits. False where every column is held (the fit cannot move).
 bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h, bool central, MatrixXd &J, Counters &C)
 {
     const int k = (int)th.size();
@@ -257,21 +279,23 @@ bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h,
     C.jacobian_evaluations += (long)simulated.size();
     J.resize(r.size(), k);
     std::size_t at = 0;
+    const long held_before = C.held_columns;
     for (int j = 0; j < k; ++j) {
         const double hj = steps[(std::size_t)j];
         if (two_sided[(std::size_t)j]) {
             if (ok[at] && ok[at + 1]) J.col(j) = (rs[at] - rs[at + 1]) / (2 * h);
             else if (ok[at]) J.col(j) = (rs[at] - r) / h;
             else if (ok[at + 1]) J.col(j) = (r - rs[at + 1]) / h;
-            else return false;
+            else rescue_column(P, th, r, j, h, J, C);
             at += 2;
         } else {
             if (ok[at]) J.col(j) = (rs[at] - r) / hj;
-            else if (!one_sided_column(P, th, r, j, -hj, J, C)) return false;
+            else if (!one_sided_column(P, th, r, j, -hj, J, C)) rescue_column(P, th, r, j, h, J, C);
             at += 1;
         }
     }
-    return true;
+    // every column held: the fit cannot move from theta
+    return C.held_columns - held_before < k;
 }
 
 VectorXd clip(const Problem &P, const VectorXd &th) { return th.cwiseMax(P.lo).cwiseMin(P.hi); }
@@ -754,7 +778,11 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
         res->iterations = C.iterations;
         res->best_start = best_start;
         res->status = best.status;
-        std::snprintf(res->message, sizeof res->message, "%s", best.message.c_str());
+        std::string message = best.message;
+        if (C.held_columns > 0)
+            message += " (a Jacobian column was held at zero " + std::to_string(C.held_columns) +
+                       " time(s): no step near the point simulated or stayed within the bounds)";
+        std::snprintf(res->message, sizeof res->message, "%s", message.c_str());
         res->cost_history_length = 0;
         for (double c : C.history)
             if (res->cost_history && res->cost_history_length < res->cost_history_capacity)
