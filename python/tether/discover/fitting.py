@@ -13,7 +13,7 @@ import numpy as np
 
 from .. import nuisance as NZ
 from ..identify_native import FORWARD
-from ..models import ModelSpec, parse_model
+from ..models import IWAN_EPS, IWAN_K, ModelSpec, parse_model
 from ..traces import Trace
 from .laws import _floor, _POSITIVE, free_parameters, HELD_AT_START
 from .scales import _Scales
@@ -64,6 +64,10 @@ class ModelFit:
 
 
 def _clean_start(names: Sequence[str], start: dict, sc: _Scales) -> dict:
+    """The start values of the free parameters ``names`` the engine accepts; a value it cannot start
+    from is left to tether.fit's data-based estimate (a positive parameter at or below zero, and
+    with an Iwan element's stiffness its slip strain of zero: valid only beside a stiffness of 0,
+    which a log-scaled start cannot be; a fit that switched an element off hands back both at 0)."""
     out = {}
     for n in names:
         if n not in start:
@@ -83,6 +87,9 @@ def _clean_start(names: Sequence[str], start: dict, sc: _Scales) -> dict:
         if n == "kaw_residual":
             v = min(max(v, 0.0), 0.9)
         out[n] = v
+    for k, e in zip(IWAN_K, IWAN_EPS):
+        if k in names and k not in out and not out.get(e, 1.0) > 0:
+            out.pop(e, None)
     return out
 
 
