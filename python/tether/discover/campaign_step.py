@@ -106,23 +106,15 @@ class Steps:
         fits = _side_by_side(fitted, cands)
         wider = [] if self.budget_hit else self.wider_candidates(cands, fits)
         cands, fits = cands + wider, fits + _side_by_side(fitted, wider)
-        by_effect: dict = {}
-        for (e, new, _, _), f in zip(cands, fits):
-            if e in RIVAL_LAWS and f.ok:     # each law's fit, for the rival law at the end (rival_law)
-                self.rivals.setdefault(e, {})[_law_of(new, e)] = dict(f.params)
-            c = self.judge(e, f)
-            self.say(f"  + {e} ({new.canonical}): campaign RMS error {f.rms:.2f} x noise ({self.per_record(f)}), "
-                     f"BIC {c.bic_change:+.0f}, by record {c.records_bic_change:+.0f}"
-                     + (" passes" if c.accepted else f": {c.verdict}") + f" ({f.seconds:.1f} s)")
-            if e not in by_effect or ((c.accepted, -c.records_bic_change)
-                                      > (by_effect[e].accepted, -by_effect[e].records_bic_change)):
-                by_effect[e] = c
+        results = self.judge_all(cands, fits)
         if self.budget_hit:
             self.stop = f"the time budget of {self.budget:.0f} s was spent during step {len(self.steps) + 1}"
             return False
-        results = sorted(by_effect.values(), key=lambda c: c.records_bic_change)
         passing = [c for c in results if c.accepted]
         win = self.heldout_tests(passing)
+        if win is None and passing and not self.budget_hit:
+            win, wider_results = self.wider_after_heldout(passing, cands, fitted)
+            results += wider_results
         step = CampaignStep(effect=None, model_before=cur.model, model_after=None, rms_before=cur.rms, rms_after=None,
                             records_before=list(cur.rms_records), records_after=None, candidates=results,
                             fit_before=cur, refit=refit)
@@ -135,6 +127,49 @@ class Steps:
             self.retest_named(step)
         return True
 
+
+    def judge_all(self, cands: list, fits: list) -> list:
+        """Each candidate judged (judge) and reported; the best of each effect (passing first, then
+        by the records' BIC change), ranked by the records' BIC change. Each law's fit is kept for
+        the rival law at the end (rival_law)."""
+        by_effect: dict = {}
+        for (e, new, _, _), f in zip(cands, fits):
+            if e in RIVAL_LAWS and f.ok:
+                self.rivals.setdefault(e, {})[_law_of(new, e)] = dict(f.params)
+            c = self.judge(e, f)
+            self.say(f"  + {e} ({new.canonical}): campaign RMS error {f.rms:.2f} x noise ({self.per_record(f)}), "
+                     f"BIC {c.bic_change:+.0f}, by record {c.records_bic_change:+.0f}"
+                     + (" passes" if c.accepted else f": {c.verdict}") + f" ({f.seconds:.1f} s)")
+            if e not in by_effect or ((c.accepted, -c.records_bic_change)
+                                      > (by_effect[e].accepted, -by_effect[e].records_bic_change)):
+                by_effect[e] = c
+        return sorted(by_effect.values(), key=lambda c: c.records_bic_change)
+
+    def wider_after_heldout(self, refused: list, cands: list, fitted) -> tuple:
+        """Where every candidate that passed on the whole campaign failed its held-out test: each of
+        them in its effect's own law fitted again with the wider law (laws.WIDER_LAWS), where this
+        step has not fitted that law, and judged the same way (the whole campaign, then the held-out
+        parts). Two laws that fit the records alike may extrapolate unlike: the held-out test is
+        the one that tells them apart, so the wider law must reach it (docs/campaign-discovery.md,
+        session 37). (the winner or None, the wider laws' candidates as judge_all ranks them)"""
+        done = {(e, _law_of(new, e)) for e, new, _, _ in cands}
+        more = []
+        for c in refused:
+            law, wider = WIDER_LAWS.get(c.effect, (None, None))
+            if law is None or _law_of(c.fit.spec, c.effect) != law or (c.effect, wider) in done:
+                continue
+            e, new, i, _ = next(x for x in cands if x[0] == c.effect and _law_of(x[1], c.effect) == law)
+            rigs = EFFECT[e].law(wider).rigs
+            if rigs is not None and self.records[i].trace.rig not in rigs:
+                continue
+            other = _with_law(new, e, wider)
+            more.append((e, other, i, self.starts_on(i, other)))
+        if not more:
+            return None, []
+        self.say("  no candidate passes its held-out test: the wider law of "
+                 + ", ".join(f"{e} ({_law_of(x, e)})" for e, x, _, _ in more) + " is fitted too")
+        results = self.judge_all(more, _side_by_side(fitted, more))
+        return self.heldout_tests([c for c in results if c.accepted]), results
 
     def refit_current(self, factor: float) -> dict:
         """The current model fitted the way its candidates are (candidate_fit with no effect added,
