@@ -4,7 +4,6 @@ weighted experiments, engine options), the stages run, and the result with its s
 from __future__ import annotations
 
 import math
-import sys
 import time as _time
 from dataclasses import dataclass
 from pathlib import Path
@@ -230,7 +229,7 @@ def _run_stages(problem: _Problem, n_starts: int, progress: Callable[[FitProgres
         hold = {n: current[n] for n in problem.free if n not in names}
         for x in problem.exps:
             x.exp.settings = {**x.exp.settings, **hold}
-        fr = {n: (*problem.box[n], _stage_start(current[n], problem.box[n], problem.scaling[n])) for n in names}
+        fr = {n: (*problem.box[n], _stage_start(current[n], problem.x0[n], problem.box[n], problem.scaling[n])) for n in names}
         cb = _engine_progress(progress, problem.exps, sname, si, len(stages), names, t_begin)
         o = _stage_options(problem.options, si == len(stages) - 1, n_starts)
         t_stage = _time.perf_counter()
@@ -250,16 +249,13 @@ def _run_stages(problem: _Problem, n_starts: int, progress: Callable[[FitProgres
     return current, evaluations, stage_log, r
 
 
-def _stage_start(value: float, box: tuple[float, float], scaling: str) -> float:
-    """A stage's start of a parameter from the last stage's value: inside its box, and above zero
-    where it is log-scaled (the engine refuses a log-scaled start of 0, and a stage can drive a
-    parameter the records hardly see, such as a damping beside a hysteresis, below the smallest
-    double: its next stage starts at the smallest positive one, as near to where it was as the
-    scaling allows)."""
+def _stage_start(value: float, start: float, box: tuple[float, float], scaling: str) -> float:
+    """A stage's start of a parameter from the last stage's ``value``: inside its box; where it is
+    log-scaled and the last stage drove it to zero (a parameter the records hardly see, such as a
+    damping beside a hysteresis), the fit's own ``start`` again, for the engine refuses a
+    log-scaled start of 0 and a parameter at the smallest double would never move again."""
     v = min(max(value, box[0]), box[1])
-    if scaling == "log" and not v > 0:
-        v = min(max(sys.float_info.min, box[0]), box[1])
-    return v
+    return start if scaling == "log" and not v > 0 else v
 
 
 def _stage_options(options: Mapping, last: bool, n_starts: int) -> dict:
