@@ -229,7 +229,8 @@ def _run_stages(problem: _Problem, n_starts: int, progress: Callable[[FitProgres
         hold = {n: current[n] for n in problem.free if n not in names}
         for x in problem.exps:
             x.exp.settings = {**x.exp.settings, **hold}
-        fr = {n: (*problem.box[n], _stage_start(current[n], problem.x0[n], problem.box[n], problem.scaling[n])) for n in names}
+        fr = {n: (*problem.box[n], _stage_start(current[n], problem.x0[n], problem.box[n], problem.scaling[n]))
+              for n in names}
         cb = _engine_progress(progress, problem.exps, sname, si, len(stages), names, t_begin)
         o = _stage_options(problem.options, si == len(stages) - 1, n_starts)
         t_stage = _time.perf_counter()
