@@ -60,22 +60,30 @@ class Steps:
         named to be widened (docs/campaign-discovery.md, fourth round)."""
         out = []
         for (e, new, i, _), f in zip(cands, fits):
-            law, wider = WIDER_LAWS.get(e, (None, None))
+            other = self.wider_law_model(e, new, i) if f.ok else None
+            if other is None:
+                continue
             r = self.records[i]
-            if law is None or _law_of(new, e) != law or not f.ok:
-                continue
-            rigs = EFFECT[e].law(wider).rigs
-            if rigs is not None and r.trace.rig not in rigs:
-                continue
             added = f.n_free - self.cur.n_free
             if (self.reveals(i, self.cur.rms_records[i], f.rms_records[i], added)
                     or _gap(f.rms_records[i], r.sigma) < CRITERIA.unexplained_gap * r.sigma):
                 continue
-            other = _with_law(new, e, wider)
-            self.say(f"  {e}: its law {law} leaves {r.name} at {f.rms_records[i] / r.sigma:.2f} x its noise "
-                     f"({self.cur.rms_records[i] / r.sigma:.2f} before): the wider law {wider} is fitted too")
+            self.say(f"  {e}: its law {_law_of(new, e)} leaves {r.name} at {f.rms_records[i] / r.sigma:.2f} x its "
+                     f"noise ({self.cur.rms_records[i] / r.sigma:.2f} before): the wider law {_law_of(other, e)} "
+                     f"is fitted too")
             out.append((e, other, i, self.starts_on(i, other)))
         return out
+
+    def wider_law_model(self, e: str, new: ModelSpec, i: int) -> ModelSpec | None:
+        """``new`` with effect ``e``'s wider law (laws.WIDER_LAWS) in place of its own, where ``new``
+        has the own law and record i's rig tries the wider one; None otherwise."""
+        law, wider = WIDER_LAWS.get(e, (None, None))
+        if law is None or _law_of(new, e) != law:
+            return None
+        rigs = EFFECT[e].law(wider).rigs
+        if rigs is not None and self.records[i].trace.rig not in rigs:
+            return None
+        return _with_law(new, e, wider)
 
     def reveals(self, i: int, before: float, after: float, added: int) -> bool:
         """Does a model with ``added`` parameters more, record i's error going from ``before`` to
@@ -155,15 +163,11 @@ class Steps:
         done = {(e, _law_of(new, e)) for e, new, _, _ in cands}
         more = []
         for c in refused:
-            law, wider = WIDER_LAWS.get(c.effect, (None, None))
-            if law is None or _law_of(c.fit.spec, c.effect) != law or (c.effect, wider) in done:
-                continue
-            e, new, i, _ = next(x for x in cands if x[0] == c.effect and _law_of(x[1], c.effect) == law)
-            rigs = EFFECT[e].law(wider).rigs
-            if rigs is not None and self.records[i].trace.rig not in rigs:
-                continue
-            other = _with_law(new, e, wider)
-            more.append((e, other, i, self.starts_on(i, other)))
+            e, law = c.effect, _law_of(c.fit.spec, c.effect)
+            _, new, i, _ = next(x for x in cands if x[0] == e and _law_of(x[1], e) == law)
+            other = self.wider_law_model(e, new, i)
+            if other is not None and (e, _law_of(other, e)) not in done:
+                more.append((e, other, i, self.starts_on(i, other)))
         if not more:
             return None, []
         self.say("  no candidate passes its held-out test: the wider law of "
