@@ -614,3 +614,36 @@ def test_a_jacobian_column_whose_step_fails_both_ways_takes_a_shorter_step_not_t
     assert r.rms <= start_rms * (1 + 1e-9), (r.rms, start_rms, r.message)
     assert r.rms < 1.2e-4, (r.rms, r.message)
 
+
+
+# A forced payload record whose forcing grows tenfold halfway: a tether that softens at small
+# strain and hardens at large (a cubic with a2 < 0 < a3), fitted with a quadratic law (a3 = 0). The
+# first half alone asks for a2 so negative that the law turns down inside the second half's swing
+def _forced_softening_record():
+    t = np.arange(8001) * 2e-3
+    f = np.where(t < t[-1] / 2, 2.0, 20.0) * np.sin(2 * np.pi * 2.0 * t)
+    der = idn.spline_derivatives(t, f)
+    settings = dict(PAYLOAD, stiffness=2, damping=1, hysteresis=1, x0=0.0, c0=3.0)
+    e = idn.Experiment(t, settings=settings, input_kind=idn.INPUT_FORCE, input=f, input_der=der)
+    y = idn.simulate(e, {"a1": 8000.0, "a2": -4e5, "a3": 1e7})
+    e.measured = y + 1e-4 * np.random.default_rng(3).standard_normal(y.size)
+    e.settings = dict(settings, a3=0.0)
+    return e
+
+
+def test_a_horizon_stage_whose_start_fails_on_the_longer_record_begins_again_at_the_fit_s_start():
+    e = _forced_softening_record()
+    free = {"a1": (100.0, 1e5, 8000.0), "a2": (-1e8, 1e8, 0.0)}
+    scaling = {"a2": "linear"}
+    half = idn.Experiment(e.time[:4001], settings=e.settings, input_kind=idn.INPUT_FORCE, input=e.input[:4001],
+                          input_der=e.input_der[:4001], measured=e.measured[:4001])
+    first_stage = idn.fit([half], free, scaling=scaling, horizon_stages=1).as_dict()
+    # the case: the first half's optimum runs away on the whole record; the fit's start does not
+    assert first_stage["a2"] < 0 and not _simulates(e, first_stage), first_stage
+    assert _simulates(e, {"a1": 8000.0, "a2": 0.0})
+    one_stage = idn.fit([e], free, scaling=scaling, horizon_stages=1)
+    two_stages = idn.fit([e], free, scaling=scaling, horizon_stages=2)
+    assert two_stages.status == 0, two_stages.message
+    # the second stage began again at the start: it ends where the one-stage fit from there ends
+    assert two_stages.rms == pytest.approx(one_stage.rms, rel=1e-9)
+    assert np.allclose(two_stages.values, one_stage.values, rtol=1e-9)

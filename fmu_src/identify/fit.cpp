@@ -312,6 +312,7 @@ struct LMResult {
     double cost = std::numeric_limits<double>::infinity();
     int status = -1;
     std::string message;
+    bool start_failed = false; // the start itself did not simulate (not a deadline)
     // the finite-difference Jacobian at th, when the fit's last one was computed there (central or
     // forward as `central` says); empty otherwise. The statistics reuse it: the same bits as a new one
     MatrixXd J;
@@ -348,7 +349,10 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
     ++C.evaluations;
     if (P.limits && P.limits->expired() && stopped_by_deadline()) return R;
     if (!P.residuals(th, r, err)) {
-        if (!stopped_by_deadline()) R.message = "the start fails to simulate: " + err;
+        if (!stopped_by_deadline()) {
+            R.message = "the start fails to simulate: " + err;
+            R.start_failed = true;
+        }
         return R;
     }
     double cost = 0.5 * r.squaredNorm();
@@ -568,6 +572,29 @@ LMResult polish_with_central_differences(const Problem &P, const LMResult &R, co
     return Rc.status >= 0 && Rc.cost <= R.cost ? Rc : R;
 }
 
+// One start through the horizon stages. A later stage begins at the earlier stage's optimum; where
+// that point fails to simulate on the longer horizon (the part of the record it never saw drives it
+// out of the model's range), the stage begins again at the start's own point.
+LMResult fit_through_stages(const std::vector<Problem> &stages, const VectorXd &th_start, const kt_fit_options &o,
+                            Counters &C, int start_no)
+{
+    const int n_stages = (int)stages.size();
+    VectorXd th = th_start;
+    LMResult R;
+    for (int sg = 0; sg < n_stages; ++sg) {
+        // stages before the last only bring the start near the optimum: a looser stop
+        kt_fit_options os = o;
+        if (sg < n_stages - 1) os.stat_tol = std::max(o.stat_tol, 0.1);
+        if (os.central_differences == KT_POLISH_CENTRAL) os.central_differences = 0;
+        R = levenberg_marquardt(stages[(std::size_t)sg], th, os, C, start_no, sg, n_stages);
+        if (R.start_failed && sg > 0)
+            R = levenberg_marquardt(stages[(std::size_t)sg], th_start, os, C, start_no, sg, n_stages);
+        if (R.status < 0) break;
+        th = R.th;
+    }
+    return R;
+}
+
 template <class T> void put(T *dst, std::size_t i, T v) { if (dst) dst[i] = v; }
 
 } // namespace
@@ -725,17 +752,8 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
                     if (std::isfinite(a) && std::isfinite(b)) th[j] = a + (b - a) * U(rng);
                     else th[j] = th0[j] + o.start_spread * (2 * U(rng) - 1);
                 }
-            LMResult R;
-            for (int sg = 0; sg < n_stages; ++sg) {
-                // stages before the last only bring the start near the optimum: a looser stop
-                kt_fit_options os = o;
-                if (sg < n_stages - 1) os.stat_tol = std::max(o.stat_tol, 0.1);
-                if (os.central_differences == KT_POLISH_CENTRAL) os.central_differences = 0;
-                R = levenberg_marquardt(stages[(std::size_t)sg], th, os, C, st, sg, n_stages);
-                if (R.status == -2) { err = "kt_fit: " + R.message; return -1; }
-                if (R.status < 0) break;
-                th = R.th;
-            }
+            LMResult R = fit_through_stages(stages, th, o, C, st);
+            if (R.status == -2) { err = "kt_fit: " + R.message; return -1; }
             if (R.status >= 0 && o.central_differences == KT_POLISH_CENTRAL) {
                 R = polish_with_central_differences(stages.back(), R, o, C, st, n_stages);
                 if (R.status == -2) { err = "kt_fit: " + R.message; return -1; }
