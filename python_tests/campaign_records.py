@@ -47,7 +47,15 @@ def tether_material(seed: int) -> dict:
     """One tether's material parameters: hidden_effects' draw for a free vibration (whose EA keeps
     the static stretch above the noise), shared by every record of the campaign."""
     P = he._draw_params("free_vibration", np.random.default_rng(np.random.SeedSequence(int(seed)).spawn(3)[0]))
-    return {k: P[k] for k in MATERIAL}
+    return {**{k: P[k] for k in MATERIAL}, "stiff_ref_strain": reference_strain(P)}
+
+
+def reference_strain(P: dict) -> float:
+    """The strain scale of the tether's nonlinear elastic law, the same in every record: the load
+    tests' (hidden_effects: eps_r of the logcosh law, eps_ref = 0.01 of the power law). Left to each
+    experiment, a payload record's law scaled with its own static strain, so that the records of a
+    campaign were of tethers whose laws differed (docs/campaign-discovery.md, 2026-11-28)."""
+    return float(P["stiff_eps_r_load"]) if P["stiffness_law"] == "logcosh" else 0.01
 
 
 #: the tests' records: lower rates and shorter programs than SMALL (tens to hundreds of samples),

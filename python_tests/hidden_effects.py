@@ -44,6 +44,8 @@ nonlinear_stiffness    two laws, alternated by the suite (override ``stiffness_l
                        eps_r 0.7-1.4 x the static strain (load tests: 0.005-0.015);
                        *power*: ``F_el = EA eps_ref sgn(eps)|eps/eps_ref|^p``, p 1.25-1.6,
                        eps_ref = static strain (load tests 0.01), secant = EA there.
+                       Override ``stiff_ref_strain`` sets eps_r (logcosh) or eps_ref (power)
+                       for every experiment: one tether's law in a campaign.
                        Neither is a polynomial; the cubic a1 e + a2 e^2 + a3 e^3 is not exact
                        for either.
 hysteresis             Iwan model: N = 12 parallel Jenkins elements (spring k_i = eta EA / N in
@@ -556,10 +558,12 @@ def _make_elastic(P, effects, eps_static=None):
     EA = P["EA_N"]
     if "nonlinear_stiffness" not in effects:
         return Elastic(EA)
+    # one tether in several experiments (campaign_records) fixes the law's strain scale for all
+    ref = P.get("stiff_ref_strain")
     if P["stiffness_law"] == "logcosh":
-        er = P["stiff_eps_r_factor"] * eps_static if eps_static else P["stiff_eps_r_load"]
+        er = ref or (P["stiff_eps_r_factor"] * eps_static if eps_static else P["stiff_eps_r_load"])
         return Elastic(EA, "logcosh", alpha=P["stiff_alpha"], eps_r=er)
-    eref = eps_static if eps_static else 0.01
+    eref = ref or (eps_static if eps_static else 0.01)
     return Elastic(EA, "power", p=P["stiff_p"], eps_ref=eref)
 
 
@@ -888,7 +892,7 @@ def generate(experiment, effects=frozenset(), seed=0, noise=None, rate=None, nui
         nz = {"mass_factor": float(overrides.pop("mass_factor", factor)),
               "offset_noise": float(overrides.pop("offset_noise", offset)),
               "preroll_s": float(overrides.pop("preroll_s", preroll)) if experiment == "forced" else 0.0}
-    allowed = set(P) | {"x0_m", "duration_s", "v0_m_s"}
+    allowed = set(P) | {"x0_m", "duration_s", "v0_m_s", "stiff_ref_strain"}
     unknown = set(overrides) - allowed
     if unknown:
         raise TypeError(f"unknown override(s) {sorted(unknown)}")
