@@ -47,7 +47,7 @@ def tether_material(seed: int) -> dict:
     """One tether's material parameters: hidden_effects' draw for a free vibration (whose EA keeps
     the static stretch above the noise), shared by every record of the campaign."""
     P = he._draw_params("free_vibration", np.random.default_rng(np.random.SeedSequence(int(seed)).spawn(3)[0]))
-    return {**{k: P[k] for k in MATERIAL}, "stiff_ref_strain": reference_strain(P)}
+    return {k: P[k] for k in MATERIAL}
 
 
 def reference_strain(P: dict) -> float:
@@ -67,9 +67,11 @@ TINY = {"free_vibration": {"rate": 50.0, "duration_s": 6.0},
 
 def record(experiment: str, tether_effects, material: dict, seed: int, sizes: dict | None = None, **overrides):
     """One record of the tether: its experiment with the tether's effects that act in it, at the
-    rate and program ``sizes`` gives it (default SMALL)."""
+    rate and program ``sizes`` gives it (default SMALL); its elastic law's strain scale the
+    tether's (reference_strain), unless the material or the overrides set it."""
     effects = {e for e in tether_effects if e in ACTS_IN[experiment]}
     kw = {**(SMALL if sizes is None else sizes)[experiment], **material, **overrides}
+    kw.setdefault("stiff_ref_strain", reference_strain(kw))
     return he.generate(experiment, effects, seed, **kw)
 
 

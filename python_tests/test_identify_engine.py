@@ -615,7 +615,6 @@ def test_a_jacobian_column_whose_step_fails_both_ways_takes_a_shorter_step_not_t
     assert r.rms < 1.2e-4, (r.rms, r.message)
 
 
-
 # A forced payload record whose forcing grows tenfold halfway: a tether that softens at small
 # strain and hardens at large (a cubic with a2 < 0 < a3), fitted with a quadratic law (a3 = 0). The
 # first half alone asks for a2 so negative that the law turns down inside the second half's swing
