@@ -185,6 +185,30 @@ def test_fit_recovers_known_parameters_within_their_intervals():
     assert r.cost_history[0] > r.cost_history[-1] and r.evaluations > 0
 
 
+def test_samples_of_weight_zero_are_left_out_of_the_fit_and_the_rest_decide_it():
+    """A stretch inside the record ruined (a 5 cm jump) and given weight 0: the fit is the one of
+    the record with that stretch clean and weighted 0, to the bit (the ruined samples never reach
+    the residuals), it recovers the truth within its intervals, and without the weights the ruined
+    stretch moves it far off."""
+    clean = _synthetic(dict(SIMPLE, x0=-0.1669), TRUTH_SIMPLE, 4001, 2e-4, seed=101)
+    w = np.ones(4001)
+    w[1500:2600] = 0.0
+    ruined = idn.Experiment(clean.time, settings=clean.settings, measured=clean.measured.copy())
+    ruined.measured[1500:2600] += 0.05
+    free = _free(TRUTH_SIMPLE, {"a1": 1.1, "a2": 0.9, "a3": 0.85, "c0": 1.3, "c1": 0.8})
+    fits = []
+    for e in (clean, ruined):
+        e.sample_weight = w
+        fits.append(idn.fit([e], free, output_stride=20))
+    assert fits[0].status == 0, fits[0].message
+    assert list(fits[0].values) == list(fits[1].values)
+    for n, v, lo, hi in zip(fits[1].names, fits[1].values, fits[1].ci_low, fits[1].ci_high):
+        assert lo <= TRUTH_SIMPLE[n] <= hi, f"{n}: truth {TRUTH_SIMPLE[n]} outside [{lo}, {hi}] (fit {v})"
+    ruined.sample_weight = None
+    whole = idn.fit([ruined], free, output_stride=20)
+    assert abs(dict(zip(whole.names, whole.values))["c0"] / TRUTH_SIMPLE["c0"] - 1) > 0.05
+
+
 # ---- 3. joint fit over the paper's two release amplitudes ---------------------------------------
 def test_joint_fit_over_two_release_amplitudes():
     truth = TRUTH_SIMPLE

@@ -75,15 +75,26 @@ struct RawOutputs {
     }
 };
 
-// a simulated measured column (n samples from v) made residuals in place: weight * (model - measured)
+// a simulated measured column (n samples from v) made residuals in place:
+// weight * sample_weight[k] * (model - measured); a non-finite model output fails at any factor
 bool to_residuals(const kt_experiment &e, double *v, std::string &err)
 {
     const double w = e.weight > 0 ? e.weight : 1.0;
     for (int k = 0; k < e.n; ++k) {
         v[k] = w * (v[k] - e.measured[k]);
         if (!std::isfinite(v[k])) { err = "non-finite residual"; return false; }
+        if (e.sample_weight) v[k] *= e.sample_weight[k];
     }
     return true;
+}
+
+// the samples of e a fit sees: those of a nonzero sample_weight (every one where there is none)
+int fitted_samples(const kt_experiment &e)
+{
+    if (!e.sample_weight) return e.n;
+    int n = 0;
+    for (int k = 0; k < e.n; ++k) n += e.sample_weight[k] != 0.0;
+    return n;
 }
 
 struct Problem {
@@ -98,6 +109,7 @@ struct Problem {
     std::vector<double> sign, scale; // log: p = sign exp(theta); linear: p = scale theta
     VectorXd lo, hi;           // bounds in theta
     int n_res = 0;
+    int n_fitted = 0;          // the residuals of a nonzero sample weight: the statistics' sample count
     double rtol_override = 0;
     int n_threads = 1;
     const kt::Limits *limits = nullptr; // deadlines (NULL = none)
@@ -453,7 +465,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
                 nu = 2.0;
                 accepted = true;
                 if (rel < o.ftol) { converged = true; R.message = "relative cost decrease small"; }
-                const double s2 = 2.0 * cost / std::max(1, P.n_res - (int)th.size());
+                const double s2 = 2.0 * cost / std::max(1, P.n_fitted - (int)th.size());
                 if (!converged && o.stat_tol > 0 && cost * rel < o.stat_tol * s2) {
                     converged = true;
                     R.message = "cost decrease far below the residual variance";
@@ -675,6 +687,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             P.exps[(std::size_t)i].continuous_input = o.continuous_input != 0;
             P.exps[(std::size_t)i].limits = P.limits;
             P.n_res += experiments[i].n;
+            P.n_fitted += fitted_samples(experiments[i]);
         }
         // horizon stages: the same problem on the first part of each non-periodic record
         const int n_stages = std::max(1, o.horizon_stages);
@@ -720,7 +733,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             }
             th0[j] = P.to_theta(j, s);
         }
-        if (P.n_res <= k) { err = "kt_fit: fewer residuals than parameters"; return -1; }
+        if (P.n_fitted <= k) { err = "kt_fit: fewer residuals than parameters"; return -1; }
         if (P.offset_j >= 0) P.raw = std::make_shared<RawOutputs>();
         for (int sg = 0; sg < n_stages; ++sg) {
             Problem &Q = stages[(std::size_t)sg];
@@ -729,12 +742,13 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             const double frac = std::ldexp(1.0, -(n_stages - 1 - sg));
             auto &ex = stage_exps[(std::size_t)sg];
             ex.assign(experiments, experiments + n_exp);
-            Q.n_res = 0;
+            Q.n_res = Q.n_fitted = 0;
             for (int i = 0; i < n_exp; ++i) {
                 kt_experiment &x = ex[(std::size_t)i];
                 if (x.periodic_samples == 0) x.n = std::max(std::min(x.n, k + 2), (int)std::ceil(x.n * frac));
                 Q.exps[(std::size_t)i].e = &x;
                 Q.n_res += x.n;
+                Q.n_fitted += fitted_samples(x);
             }
         }
 
@@ -771,7 +785,7 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             err = P.out_of_time() ? "kt_fit: " + P.limits->message() : "kt_fit: the Jacobian at the optimum failed to simulate";
             return -1;
         }
-        const int N = P.n_res, dof = N - k;
+        const int N = P.n_fitted, dof = N - k;
         const double ssr = best.r.squaredNorm();
         const double s2 = ssr / dof;
         Eigen::JacobiSVD<MatrixXd> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);

@@ -85,6 +85,9 @@ typedef struct {
     int periodic_samples;
     double periodic_tol;
     int periodic_max_periods;
+    /* n factors on the residuals beside weight (NULL = all 1): a sample of factor 0 is left out of
+     * the fit (a held-out part inside the record); the simulation still runs through it */
+    const double *sample_weight;
 } kt_experiment;
 
 /* Simulate one experiment with the parameters names[i] = values[i] (after the experiment's own

@@ -52,6 +52,7 @@ class _Experiment(C.Structure):
         ("input_kind", C.c_int), ("input", _DP), ("input_der", _DP),
         ("output", C.c_char_p), ("measured", _DP), ("weight", C.c_double),
         ("periodic_samples", C.c_int), ("periodic_tol", C.c_double), ("periodic_max_periods", C.c_int),
+        ("sample_weight", _DP),
     ]
 
 
@@ -201,6 +202,7 @@ class Experiment:
     periodic_samples: int = 0
     periodic_tol: float = 0.0
     periodic_max_periods: int = 0
+    sample_weight: np.ndarray | None = None   # n factors on the residuals; 0 leaves a sample out of a fit
 
     def _struct(self, keep: list) -> _Experiment:
         t = np.ascontiguousarray(self.time, dtype=float)
@@ -237,7 +239,11 @@ class Experiment:
         s.periodic_samples = int(self.periodic_samples or 0)
         s.periodic_tol = float(self.periodic_tol)
         s.periodic_max_periods = int(self.periodic_max_periods)
-        keep.extend([t, vals, inp, der, meas, s.output])
+        sw = None if self.sample_weight is None else np.ascontiguousarray(self.sample_weight, dtype=float)
+        if sw is not None and (sw.shape != t.shape or not np.all(np.isfinite(sw)) or np.any(sw < 0)):
+            raise ValueError(f"sample_weight must be {t.size} finite factors >= 0")
+        s.sample_weight = _dbl(sw)
+        keep.extend([t, vals, inp, der, meas, sw, s.output])
         return s
 
 

@@ -91,6 +91,9 @@ class Trace:
     # False: the force column carries an unknown gain (docs/nuisance.md)
     force_gain_known: bool = True
     line_density_kg_m: float = 0.0  # tether.line_density_kg_m: the FMU's line_density (payload rig)
+    # the samples a fit sees (bool per sample; None: every one): a held-out part inside the record
+    # (discover.samples.heldout_samples); never read from a file
+    fitted_samples: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def name(self) -> str:

@@ -16,7 +16,7 @@ from .. import nuisance as NZ
 from ..blas import in_one_blas_thread
 from ..models import IWAN_EPS, ModelSpec
 from ..traces import Trace, read_trace
-from .experiments import TraceExperiment, predict, trace_experiment
+from .experiments import TraceExperiment, fitted_count, predict, trace_experiment
 from .memory import scan_memory
 from .parameters import (FIRST_STAGE, bounds_and_start, check_names, default_free_parameters, fmu_bounds,
                          fmu_defaults, model_spec)
@@ -82,8 +82,7 @@ def fit_traces(traces: Sequence[Trace | str | Path], model, free: Sequence[str] 
                        f"start is returned ({r.message})")
             current.update(problem.x0)
             params, predictions, total = params0, predictions0, total0
-    per = [float(np.sqrt(np.mean((p - np.asarray(x.trace.measured, float)) ** 2)))
-           for p, x in zip(predictions, problem.exps)]
+    per = [math.sqrt(_squares(p, x.trace) / fitted_count(x.trace)) for p, x in zip(predictions, problem.exps)]
     return FitResult(
         model=spec.canonical, parameters=params, rms=total, rms_per_trace=per, predictions=predictions,
         evaluations=evaluations, seconds=_time.perf_counter() - t_begin, message=message,
@@ -177,7 +176,8 @@ def _weighted_experiments(traces: list[Trace], spec: ModelSpec,
     ref = float(np.exp(np.mean(np.log(noises))))
     for x, s in zip(exps, noises):
         x.exp.weight = math.sqrt(x.periods) * (ref / s if len(exps) > 1 else 1.0)
-    return exps, sum(len(x.exp.time) * x.exp.weight ** 2 for x in exps)
+    return exps, sum((len(x.exp.time) if x.trace.fitted_samples is None else fitted_count(x.trace))
+                     * x.exp.weight ** 2 for x in exps)
 
 
 def _engine_options(engine_options: Mapping, exps: list[TraceExperiment], scales: Mapping) -> dict:
@@ -298,15 +298,24 @@ def _predictions(problem: _Problem, values: Mapping[str, float]) -> tuple[dict, 
     ps.update(problem.fixed_nuisance)
     ps.update({n: float(values[n]) for n in problem.free})
     pred = [predict(x, ps) for x in problem.exps]
-    tot = float(np.sqrt(sum(np.sum((p - np.asarray(x.trace.measured, float)) ** 2) for p, x in zip(pred, problem.exps))
-                        / sum(len(x.trace.time) for x in problem.exps)))
+    tot = float(np.sqrt(sum(_squares(p, x.trace) for p, x in zip(pred, problem.exps))
+                        / sum(fitted_count(x.trace) for x in problem.exps)))
     return {n: v for n, v in ps.items() if n not in NZ.NUISANCE}, pred, tot
+
+
+def _squares(predicted: np.ndarray, trace: Trace) -> float:
+    """The sum of squared errors over the samples a fit sees (Trace.fitted_samples)."""
+    e = predicted - np.asarray(trace.measured, float)
+    return float(np.sum(e ** 2 if trace.fitted_samples is None else e[trace.fitted_samples] ** 2))
+
 
 
 def _residuals(problem: _Problem, values: Mapping[str, float]) -> np.ndarray:
     """The model's misfit of every trace's measured column, one vector."""
     _, pred, _ = _predictions(problem, values)
-    return np.concatenate([p - np.asarray(x.trace.measured, float) for p, x in zip(pred, problem.exps)])
+    return np.concatenate([(p - np.asarray(x.trace.measured, float)) * (1.0 if x.exp.sample_weight is None
+                                                                        else x.exp.sample_weight)
+                           for p, x in zip(pred, problem.exps)])
 
 
 def _statistics(problem: _Problem, r: idn.FitResult, current: Mapping[str, float], max_rel: float) -> dict:

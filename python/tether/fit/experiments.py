@@ -42,6 +42,8 @@ def trace_experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str,
     settings.update({k: float(v) for k, v in settings_extra.items()})
     settings["L0"] = float(trace.length_m)
     P = int(trace.periodic_samples or 0)
+    if P and trace.fitted_samples is not None:
+        raise ValueError(f"{trace.name}: a periodic record is fitted as its mean period, not on some of its samples")
     if sp.rig == "payload":
         settings.update(m=float(trace.payload_mass_kg), g=float(trace.gravity_m_s2),
                         x0=0.0 if P else float(trace.initial_displacement_m),
@@ -78,8 +80,24 @@ def trace_experiment(trace: Trace, spec: ModelSpec, settings_extra: Mapping[str,
         inp = np.append(vals, float(trace.input[-1]))
         der = np.vstack([ders, np.zeros((1, 3))])
     e = idn.Experiment(t, settings=settings, input_kind=kind, input=inp, input_der=der,
-                       output=trace.measured_column, measured=y)
+                       output=trace.measured_column, measured=y, sample_weight=fitted_weights(trace))
     return TraceExperiment(trace, e, 1)
+
+
+def fitted_weights(trace: Trace) -> np.ndarray | None:
+    """The factor of each sample's residual in a fit: 1 where the fit sees it, 0 in a held-out part
+    inside the record (Trace.fitted_samples); None where the fit sees every sample."""
+    if trace.fitted_samples is None:
+        return None
+    w = np.asarray(trace.fitted_samples, bool)
+    if w.shape != np.shape(trace.time):
+        raise ValueError(f"{trace.name}: fitted_samples has {w.size} entries for {len(trace.time)} samples")
+    return w.astype(float)
+
+
+def fitted_count(trace: Trace) -> int:
+    """The samples a fit of ``trace`` sees (Trace.fitted_samples)."""
+    return len(trace.time) if trace.fitted_samples is None else int(np.count_nonzero(trace.fitted_samples))
 
 
 def predict(x: TraceExperiment, params: Mapping[str, float]) -> np.ndarray:
