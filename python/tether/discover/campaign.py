@@ -42,6 +42,7 @@ import numpy as np
 from .. import identify_native as idn
 from .. import nuisance as NZ
 from ..blas import in_one_blas_thread
+from ..fit.experiments import fitted_count
 from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, ModelSpec, parse_model
 from ..noise import estimate_noise
 from ..traces import Trace
@@ -54,7 +55,7 @@ from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _with_law, _w
 from .nuisance import baked, nuisance_parameters, nuisance_start
 from .records import DiscoveryError, Refinement, Removal, Retest
 from .rival import _law_converted, _wider_law_starts
-from .samples import SEARCH_SAMPLES, WHOLE_RECORD_ITERATIONS, _truncated, search_thinning, thinned
+from .samples import SEARCH_SAMPLES, WHOLE_RECORD_ITERATIONS, heldout_split, search_thinning, thinned
 from .scales import _scales
 from .starts import _reduced_starts
 
@@ -93,7 +94,6 @@ class Campaign(Steps, Contradictions, Reseeding):
         self.max_steps, self.heldout_candidates = max_steps, heldout_candidates
         self.records = [self.record(tr, mass_band, free_nuisance, SEARCH_SAMPLES // len(traces)) for tr in traces]
         self.n = sum(r.n for r in self.records)
-        self.n_part = sum(r.first for r in self.records)
         for r in self.records:
             parse_model(start, r.trace.experiment)
         self.spec = parse_model(start)
@@ -123,14 +123,14 @@ class Campaign(Steps, Contradictions, Reseeding):
                                      "there is no scale to judge a gap against")
         every = search_thinning(trace, noise.sigma, samples)
         searched = thinned(trace, every) if every > 1 else trace
-        part = _truncated(searched, CRITERIA.fit_part)
+        part, held = heldout_split(searched, CRITERIA.fit_part)
         # (a hysteresis law's memory, NZ.HYSTERESIS_STATE, is a record's nuisance only in models with
         # that law: the campaign's joint fits and counts of parameters do not follow the law yet)
         nuisance = tuple(n for n in nuisance_parameters(trace) if n not in NZ.HYSTERESIS_STATE) if free_nuisance else ()
         self.say(f"{trace.name} ({trace.experiment}, {len(trace.time)} samples): noise {noise.sigma:.3g} m "
                  f"({noise.method})" + (f"; searched on every {ordinal(every)} sample ({len(searched.time)})"
                                         if every > 1 else ""))
-        return Record(searched, nuisance, noise, part, len(part.time), _scales(searched), whole=trace, every=every)
+        return Record(searched, nuisance, noise, part, held, _scales(searched), whole=trace, every=every)
 
     # ---- fits
     def law_names(self, spec: ModelSpec) -> list:
@@ -220,8 +220,8 @@ class Campaign(Steps, Contradictions, Reseeding):
             return self.engine_fit(baked_records(k), spec, names, st, fixed, iterations, cap, own_thread)
 
         def z(res) -> float:
-            """The fit's error in noise units (fit_traces' rms is the plain one over all samples)."""
-            n = [len(r.part.time if parts else r.trace.time) for r in self.records]
+            """The fit's error in noise units (fit_traces' rms is the plain one over the samples fitted)."""
+            n = [fitted_count(r.part) if parts else r.n for r in self.records]
             return in_noise_units(res.rms_per_trace, self.records, n)
 
         cap = None if self.cap is None else self.cap * cap_factor * self.own_work_ratio(spec, effects, starts[0], nzs)
@@ -401,8 +401,8 @@ class Campaign(Steps, Contradictions, Reseeding):
                 y = predict(r.trace, m.spec, {**pf.params, **nz})
             except RuntimeError:
                 return float("inf")
-            zsq += float(np.sum(((y[r.first:] - r.trace.measured[r.first:]) / r.sigma) ** 2))
-            n += r.n - r.first
+            zsq += float(np.sum(((y - r.trace.measured)[r.held] / r.sigma) ** 2))
+            n += int(np.count_nonzero(r.held))
         v = math.sqrt(zsq / max(n, 1))
         return v if math.isfinite(v) else float("inf")
 
@@ -568,10 +568,9 @@ class Campaign(Steps, Contradictions, Reseeding):
         once with it), kept where it is no worse."""
         for r in self.records:
             r.trace = r.whole
-            r.part = _truncated(r.whole, CRITERIA.fit_part)
-            r.first, r.sc, r.every = len(r.part.time), _scales(r.whole), 1
+            r.part, r.held = heldout_split(r.whole, CRITERIA.fit_part)
+            r.sc, r.every = _scales(r.whole), 1
         self.n = sum(r.n for r in self.records)
-        self.n_part = sum(r.first for r in self.records)
         carried: dict = {}
 
         def whole(m: CampaignFit | None) -> CampaignFit | None:

@@ -26,8 +26,8 @@ class Record:
     trace: Trace
     nuisance: tuple
     noise: NoiseEstimate
-    part: Trace
-    first: int
+    part: Trace                    # the record as the held-out test's fit sees it (samples.heldout_split)
+    held: np.ndarray               # the held-out samples (True per sample)
     sc: _Scales
     nz: dict = field(default_factory=dict)
     alone: dict = field(default_factory=dict)   # the start model fitted to this record alone: law and nuisance
@@ -45,6 +45,11 @@ class Record:
     @property
     def n(self) -> int:
         return len(self.trace.time)
+
+    @property
+    def first(self) -> int:
+        """The first held-out sample."""
+        return int(np.argmax(self.held))
 
 
 @dataclass

@@ -235,7 +235,7 @@ class Steps:
     def slack_in_held_parts(self, f: CampaignFit, among: tuple | None) -> bool:
         """Whether ``f`` goes slack in the held-out part of any of the records ``among`` (default all)."""
         among = range(len(self.records)) if among is None else among
-        return any(regimes(self.records[i].trace, self.record_fit(f, i))["slack"][self.records[i].first:].any()
+        return any(regimes(self.records[i].trace, self.record_fit(f, i))["slack"][self.records[i].held].any()
                    for i in among)
 
     def able_to_reveal(self, effect: str) -> tuple | None:

@@ -1,5 +1,6 @@
-"""Which samples of the record a fit sees: the first part (the held-out test), and every k-th
-sample of a long record (the search's thinning)."""
+"""Which samples of the record a fit sees: the first part (the held-out test; in a creep test
+the first part of each load level), and every k-th sample of a long record (the search's
+thinning)."""
 
 from __future__ import annotations
 
@@ -26,7 +27,47 @@ def _samples_of(trace: Trace, index) -> Trace:
     out.measured = trace.measured[index]
     if trace.input is not None:
         out.input = trace.input[index]
+    if trace.fitted_samples is not None:
+        out.fitted_samples = trace.fitted_samples[index]
     return out
+
+
+#: a creep test's load changes level where it moves by more than this share of its range from one
+#: sample to the next (a measured load's noise stays far below it)
+LEVEL_STEP = 0.1
+
+
+def heldout_split(trace: Trace, fraction: float) -> tuple[Trace, np.ndarray]:
+    """(the record as a held-out fit sees it, the held-out samples: True per sample). The first
+    ``fraction`` of the record (_truncated) and the rest held out; in a creep test, the first
+    ``fraction`` of each load level, its last part held out (the fit simulates the whole record
+    and sees the first parts only: Trace.fitted_samples). A creep test's last part is the recovery
+    after the last level change: a fit that saw the hold and minutes of the recovery predicts the
+    rest from the split of recoverable and unrecoverable creep, which those minutes hardly fix
+    (docs/campaign-discovery.md, session 39)."""
+    n = len(trace.time)
+    levels = load_levels(trace) if trace.experiment == "creep" and trace.input is not None else []
+    if len(levels) < 2:
+        part = _truncated(trace, fraction)
+        return part, np.arange(n) >= len(part.time)
+    held = np.zeros(n, bool)
+    for a, b in levels:
+        held[a + int(round(fraction * (b - a))):b] = True
+    part = copy.copy(trace)
+    part.fitted_samples = ~held
+    return part, held
+
+
+def load_levels(trace: Trace) -> list[tuple[int, int]]:
+    """The stretches [a, b) of samples over which a creep test's load holds one level: split where
+    it moves by more than LEVEL_STEP of its range from one sample to the next."""
+    u = np.asarray(trace.input, float)
+    span = float(np.ptp(u))
+    if not span > 0:
+        return [(0, len(u))]
+    cuts = np.nonzero(np.abs(np.diff(u)) > LEVEL_STEP * span)[0] + 1
+    edges = [0, *cuts.tolist(), len(u)]
+    return [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
 
 
 #: a record whose simulation runs over more samples than this is searched on every k-th sample,
