@@ -196,8 +196,8 @@ class Steps:
         pass on the whole campaign, more while none of those passes it (Search.heldout_tests' rule;
         testing only the best two, a campaign of seed 1000 stopped where the cubic law and a
         damping ranked above creep on the BIC); the rest are not tested. Each is judged on the
-        held-out parts of the records that can reveal its effect (laws.unrevealed), before and
-        after: another record's part moves with the shared law, not with the effect, as in add().
+        held-out parts of the records that show its effect (showing), before and after: another
+        record's part moves with the shared law, not with the effect, as in add().
         Slack is not asked where no such record goes slack in its held-out part (the one-record
         rule, judge.slack_heldout_unasked). The winner: the best that passes."""
         cur, win, tested = self.cur, None, 0
@@ -206,7 +206,7 @@ class Steps:
             if tested >= self.heldout_candidates and win is not None:
                 break
             tested += 1
-            able = self.able_to_reveal(c.effect)
+            able = self.showing(c)
             unasked = c.effect == "slack" and slack_heldout_unasked(
                 c.added_parameters, self.slack_in_held_parts(c.fit, able))
             if unasked:
@@ -216,7 +216,7 @@ class Steps:
                     before[able] = self.cur_held if able is None else self.heldout_of(cur, able)
                 c.heldout_rms = self.heldout_of(c.fit, able)
                 ok, why = heldout_verdict(1.0, before[able], c.heldout_rms, cur.rms, c.fit.rms)
-            c.verdict += f"; {why}" + ("" if able is None else " (the records that can reveal it)")
+            c.verdict += f"; {why}" + ("" if able is None else " (the records that show it)")
             self.say(f"  {c.effect}: held-out {why}" + ("" if able is None else
                      " on " + ", ".join(self.records[i].name for i in able)))
             if ok and win is None:
@@ -226,6 +226,22 @@ class Steps:
             c.accepted = False
             c.verdict += "; not tested on the held-out parts (a better candidate was)"
         return win
+
+    def revealing(self, c: CampaignCandidate) -> list:
+        """The records that reveal ``c``'s effect: of those that can (laws.unrevealed), those where
+        the candidate meets the one-record rule on their own samples (reveals: their own error
+        before and after, their own BIC with its added parameters)."""
+        return [i for i, (r, b, a) in enumerate(zip(self.records, self.cur.rms_records, c.fit.rms_records))
+                if not unrevealed(r.trace, c.effect) and self.reveals(i, b, a, c.added_parameters)]
+
+    def showing(self, c: CampaignCandidate) -> tuple | None:
+        """The records whose held-out parts judge ``c``: those that reveal its effect (revealing), else
+        those that can; None where that is every record. Where the effect shows, the other records'
+        parts move with the shared law, not with the effect, and one predicted worse by a law the
+        model still lacks would refuse an effect its own record predicts well (tuning campaign 1008,
+        docs/campaign-discovery.md, session 39)."""
+        among = tuple(self.revealing(c)) or self.able_to_reveal(c.effect)
+        return None if among is not None and len(among) == len(self.records) else among
 
     def record_fit(self, f: CampaignFit, i: int) -> ModelFit:
         """The campaign fit ``f`` on record i alone: its law with the record's nuisance values."""
@@ -292,22 +308,18 @@ class Steps:
         credited with the error it loses as the shared law moves); the nuisance and the law settled
         again."""
         cur, f = self.cur, win.fit
+        shown = self.showing(win)
         step.effect, step.model_after, step.rms_after = win.effect, f.model, f.rms
         step.records_after = list(f.rms_records)
         step.fit_after = f
-        revealed, gains = [], []
-        for i, (r, b, a) in enumerate(zip(self.records, cur.rms_records, f.rms_records)):
-            if unrevealed(r.trace, win.effect):
-                gains.append(-math.inf)     # its error moves with the shared law, not with the effect
-                continue
-            gains.append(_gap(b, r.sigma) / r.sigma - _gap(a, r.sigma) / r.sigma)
-            if self.reveals(i, b, a, win.added_parameters):
-                revealed.append(r.name)
+        revealed = [self.records[i].name for i in self.revealing(win)]
         if revealed:
             step.revealed_how = "each named record alone: its gap above the noise shrinks as the one-record rule asks"
         else:
-            best = int(np.argmax(gains))
-            revealed = [self.records[best].name]
+            # a record that cannot reveal it is not credited with what it gains as the shared law moves
+            gains = [-math.inf if unrevealed(r.trace, win.effect) else (_gap(b, r.sigma) - _gap(a, r.sigma)) / r.sigma
+                     for r, b, a in zip(self.records, cur.rms_records, f.rms_records)]
+            revealed = [self.records[int(np.argmax(gains))].name]
             step.revealed_how = ("jointly: no record alone meets the one-record rule; named is the record whose gap "
                                  "above the noise shrinks most")
         step.revealed_by = revealed
@@ -315,8 +327,8 @@ class Steps:
                  f"{', '.join(revealed)}")
         settled = self.settle(f)
         self.cur = settled
-        # the current held-out error is every record's: the winner's was read on the records that can
-        # reveal its effect, or not at all (slack), where those are not all
-        every = self.able_to_reveal(win.effect) is None and not math.isnan(win.heldout_rms)
+        # the current held-out error is every record's: the winner's was read on the records that show
+        # its effect, or not at all (slack), where those are not all
+        every = shown is None and not math.isnan(win.heldout_rms)
         self.cur_held = win.heldout_rms if settled is f and every else self.heldout_of(settled)
         self.fits.append(self.cur)
