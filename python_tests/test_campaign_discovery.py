@@ -455,7 +455,7 @@ def test_slack_that_goes_slack_only_where_the_fits_see_is_not_asked_the_held_out
 
     camp = Campaign.__new__(Campaign)
     camp.say, camp.heldout_candidates = (lambda s: None), 2
-    camp.records = [type("R", (), {"trace": t, "name": t.name})() for t in traces]
+    camp.records = [type("R", (), {"trace": t, "name": t.name, "sigma": 1.0, "n": 1000})() for t in traces]
     camp.cur, camp.cur_held = fit(63.9), 36.9
     camp.heldout_of = lambda f, among=None: 36.9 if f is camp.cur else 51.7
     for slack_after_first, accepted in ((False, True), (True, False)):
