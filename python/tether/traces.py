@@ -92,7 +92,7 @@ class Trace:
     force_gain_known: bool = True
     line_density_kg_m: float = 0.0  # tether.line_density_kg_m: the FMU's line_density (payload rig)
     # the samples a fit sees (bool per sample; None: every one): a held-out part inside the record
-    # (discover.samples.heldout_samples); never read from a file
+    # (discover.samples.heldout_split); never read from a file
     fitted_samples: np.ndarray | None = field(default=None, repr=False)
 
     @property

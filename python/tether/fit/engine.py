@@ -309,7 +309,6 @@ def _squares(predicted: np.ndarray, trace: Trace) -> float:
     return float(np.sum(e ** 2 if trace.fitted_samples is None else e[trace.fitted_samples] ** 2))
 
 
-
 def _residuals(problem: _Problem, values: Mapping[str, float]) -> np.ndarray:
     """The model's misfit of every trace's measured column, one vector."""
     _, pred, _ = _predictions(problem, values)
