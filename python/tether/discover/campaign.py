@@ -20,7 +20,8 @@ effect whose own law does not reveal it on its lead record is fitted with its wi
 step (Campaign.wider_candidates). Per
 step every record's error before and after says which record revealed the effect (the one-record
 rule on that record's samples). Each named effect is re-tested once a later one is in
-(Campaign.retest_named); where a record is still missed at the end, the Iwan bank is made finer
+(Campaign.retest_named); where a record is still missed at the end, the named laws' shapes are
+freed (Campaign.refine_shapes), the Iwan bank is made finer
 (Campaign.finer_bank: on the record that shows it worst first, then jointly; its terms stay free in
 later fits, CampaignFit.shape) and the named effects' wider laws are tried (Campaign.wider_laws),
 and where one of these keeps a law the steps resume once (Campaign.resume_steps); records beyond their share of the search's samples are searched
@@ -67,6 +68,7 @@ SETTLE_ROUNDS = 2
 
 from .campaign_contradictions import Contradictions
 from .campaign_reseed import Reseeding
+from .campaign_shapes import Shapes
 from .campaign_step import Steps
 from .campaign_records import (CampaignCandidate, CampaignDiscovery, CampaignFit, CampaignInputError,  # noqa: F401
                                CampaignStep, Record, _law_only, check_campaign, in_noise_units,
@@ -82,7 +84,7 @@ def discover_campaign(traces: Sequence[Trace], start: str = "linear", progress: 
     return Campaign(traces, start, progress, max_steps, heldout_candidates, budget, mass_band, free_nuisance).run()
 
 
-class Campaign(Steps, Contradictions, Reseeding):
+class Campaign(Steps, Contradictions, Reseeding, Shapes):
     """One campaign discovery: the records, the current joint fit and its held-out error, the steps."""
 
     def __init__(self, traces, start, progress, max_steps, heldout_candidates, budget, mass_band, free_nuisance):
@@ -451,11 +453,12 @@ class Campaign(Steps, Contradictions, Reseeding):
             self.last_stages()
 
     def last_stages(self) -> list:
-        """Where a record is still missed after the steps: the rival hysteresis law, a finer Iwan
-        bank, the wider laws, then the named effects tested again beside what changed; the effects
-        whose law a stage changed (kept refinements)."""
+        """Where a record is still missed after the steps: the shapes of the named laws, the rival
+        hysteresis law, a finer Iwan bank, the wider laws, then the named effects tested again beside
+        what changed; the effects whose law a stage changed (kept refinements)."""
         first = len(self.refinements)
-        for stage in (self.rival_law, self.finer_bank, self.wider_laws, self.retest_after_refinements):
+        for stage in (self.refine_shapes, self.rival_law, self.finer_bank, self.wider_laws,
+                      self.retest_after_refinements):
             if not self.budget_hit:
                 stage()
         return sorted({r.effect for r in self.refinements[first:] if r.accepted})

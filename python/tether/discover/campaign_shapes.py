@@ -1,0 +1,97 @@
+"""The shapes of the named laws on a campaign (the one-record search's refine.refine_shapes): a mixin
+of discover.campaign.Campaign."""
+
+from __future__ import annotations
+
+import math
+
+from .campaign_records import _law_only
+from .fitting import fit_model
+from .judge import _shape_heldout_asked, _shape_judged, bic_change
+from .records import Refinement
+from .refine import _shape_groups
+from .starts import _damping_table_start, _shape_start
+
+
+class Shapes:
+    """Needs Campaign's records, cur, cur_held, refinements, fit, adopt, heldout_of, worst_record."""
+
+    def refine_shapes(self) -> None:
+        """Where a record is still missed, the shape terms of each named law (laws.SHAPE_TERMS: the
+        cubic's power term, Bouc-Wen's exponent and terms, the Iwan bank's slip strains, the damping
+        table), one group at a time from the current model (shape_fit); each judged as in the
+        one-record search (judge._shape_judged on the campaign's error in noise units: a lower BIC
+        and error, the held-out parts' prediction no worse where asked); the best kept, its terms
+        free in every later fit (CampaignFit.shape). A law whose form differs by strain range
+        (a tether whose stiffness grows as a power of its strain) is fitted alike on every record
+        only in its right shape (docs/campaign-discovery.md, session 40)."""
+        cur = self.cur
+        if self.budget_hit or self.within_noise(cur):
+            return
+        groups = [(e, g) for e, g in _shape_groups(cur) if not set(g) <= set(cur.shape) | set(cur.free)]
+        best, first = None, len(self.refinements)
+        for effect, group in groups:
+            if self.budget_hit:
+                return
+            fm = self.shape_fit(cur, effect, group)
+            ok, r = self.shape_judged(cur, fm, effect, group)
+            if ok and (best is None or r.bic_change < best[0].bic_change):
+                best = (r, fm)
+        if best is None:
+            return
+        for r in self.refinements[first:]:        # one group wins; the others stay on record as tried
+            if r.accepted and r is not best[0]:
+                r.accepted = False
+                r.verdict += f"; {' '.join(best[0].parameters)} did better"
+        self.adopt(best[1], best[0].heldout_after)
+
+    def shape_fit(self, m, effect: str, group: tuple):
+        """``m`` with the shape terms ``group`` of ``effect``'s law free, fitted first to the record that
+        shows the effect worst, its nuisance free, from the one-record search's shape starts on it
+        (starts._shape_start; the damping table also from the rig's equation error), then to every
+        record jointly from there and from the shape start itself (the route the campaign's
+        candidates take; from the shape start alone where that record's fit fails)."""
+        able = self.able_to_reveal(effect)
+        i = self.worst_record(m, able)
+        lead = self.records[i]
+        extra = tuple(m.shape) + tuple(group)
+        flat = _shape_start({**m.params, **m.nz[i]}, group, lead.sc)
+        starts = [flat]
+        if any(g.startswith("c_table_") for g in group) and lead.trace.rig == "payload":
+            table = _damping_table_start(lead.trace, m.spec, flat, flat["c_table_dx"])
+            starts += [] if table is None else [{**flat, **table}]
+        factor = self.cap_factor_for(m)
+        self.say(f"shape of {effect} ({' '.join(group)}), fitted to {lead.name} first")
+        alone = fit_model(lead.trace, m.spec.for_experiment(lead.trace.experiment), m.effects, starts, lead.sc,
+                          nuisance=lead.nuisance, extra=extra, deadline=self.deadline,
+                          work_cap=None if self.cap is None else self.cap * factor)
+        shaped = {**m.params, **_law_only(flat, m.spec)}
+        if alone.ok:
+            nzs = [dict(nz) for nz in m.nz]
+            nzs[i] = dict(alone.nuisance)
+            fm = self.fit(m.spec, m.effects, [{**m.params, **_law_only(alone.params, m.spec)}, shaped],
+                          start_nzs=[nzs, [dict(nz) for nz in m.nz]], extra=extra, cap_factor=factor)
+        else:
+            self.say(f"  its fit to {lead.name} alone failed ({alone.message}): fitted to every record from the start")
+            fm = self.fit(m.spec, m.effects, [shaped], nzs=m.nz, extra=extra, cap_factor=factor)
+        return self.nuisance_then_law(fm, cap_factor=factor)
+
+    def shape_judged(self, cur, fm, effect: str, group: tuple) -> tuple:
+        """The shape fit ``fm`` judged against ``cur`` (refine_shapes) and put on record. (kept, the Refinement)"""
+        held, bic = float("nan"), float("inf")
+        if not fm.ok:
+            ok, verdict = False, f"the fit failed: {fm.message}"
+        else:
+            bic = bic_change(cur, fm, self.n)
+            if bic < 0.0 and fm.rms < cur.rms and _shape_heldout_asked(cur.rms, self.cur_held, fm.rms, 1.0):
+                held = self.heldout_of(fm)
+            ok, verdict = _shape_judged(cur.rms, fm.rms, bic, self.cur_held, held, 1.0,
+                                        f"RMS error {cur.rms:.2f} -> {fm.rms:.2f} x noise, BIC changes by "
+                                        f"{bic:+.1f}: the terms do not earn their place")
+            ok = ok and not self.budget_hit
+        r = Refinement(effect, tuple(group), cur.rms, fm.rms if fm.ok else math.inf, self.cur_held, held, bic, ok,
+                       verdict, {k: float(fm.params[k]) for k in group if k in fm.params} if fm.ok else {})
+        self.refinements.append(r)
+        self.say(f"  shape of {effect} ({' '.join(group)}): {'kept' if ok else 'not kept'}: {verdict}"
+                 + (f" ({self.per_record(fm)})" if fm.ok else ""))
+        return ok, r
