@@ -51,7 +51,7 @@ from .document import ordinal
 from .fitting import (CAP_SIMULATIONS, DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict,
                       work_ratio)
 from .judge import CRITERIA, _gap, _law_judged, bic_change
-from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _with_law, _without, candidates,
+from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates,
                    free_parameters)
 from .nuisance import baked, nuisance_parameters, nuisance_start
 from .records import DiscoveryError, Refinement, Removal, Retest
@@ -279,24 +279,21 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
 
     def candidate_fit(self, effect: str, spec: ModelSpec, effects, lead: int, starts, own_thread: bool = False,
                       cap_factor: float = 1.0) -> CampaignFit:
-        """A candidate fitted to the campaign. First to its lead record alone (the record that
-        shows it best), from the one-record search's starts, the record's nuisance free: the
-        nuisance values of the model it extends may carry what the new effect explains (a free
-        vibration's release point bent by a law without slack: held there, a joint fit with slack
-        stopped at 1,100 x noise where the record alone reached 1.0 x). Then the shared law to all
-        records from two starts: the lead's law (the lead's nuisance at its own fit's values), and
-        the campaign's current law with the new terms at the lead's values (every record's nuisance
-        at its current values: the lead's law may suit the lead alone, and a joint fit from it
-        ended above the model it extends, a campaign of seed 1000's creep); where the lead's fit
-        fails, from the current law and from the campaign's data-based estimate. Then once the
-        records' nuisance refitted and the law again. The work caps are the search's times
-        ``cap_factor`` (cap_factor_for)."""
+        """A candidate fitted to the campaign. First to one record alone, the one that shows it best
+        (lead_fit), that record's nuisance free: the nuisance values of the model it extends may
+        carry what the new effect explains (a free vibration's release point bent by a law without
+        slack: held there, a joint fit with slack stopped at 1,100 x noise where the record alone
+        reached 1.0 x). Then the shared law to all records from two starts: that record's law (its
+        nuisance at its own fit's values), and the campaign's current law with the new terms at
+        that record's values (every record's nuisance at its current values: one record's law may
+        suit that record alone, and a joint fit from it ended above the model it extends, a
+        campaign of seed 1000's creep); where that record's fit fails, from the current law and
+        from the campaign's data-based estimate. Then once the records' nuisance refitted and the
+        law again. The work caps are the search's times ``cap_factor`` (cap_factor_for). The fit's
+        ``lead``: the record it was fitted to alone."""
         t0 = time.perf_counter()
-        r = self.records[lead]
         cap = None if self.cap is None else self.cap * cap_factor
-        alone = fit_model(r.trace, spec.for_experiment(r.trace.experiment), effects, starts, r.sc,
-                          nuisance=r.nuisance, work_cap=cap, own_thread=own_thread, deadline=self.deadline,
-                          extra=self.cur.shape)
+        lead, alone = self.lead_fit(effect, spec, effects, lead, starts, own_thread, cap)
         nzs = [dict(x.nz) for x in self.records]
         if alone.ok:
             lead_law = _law_only(alone.params, spec)
@@ -309,8 +306,43 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
             f = self.fit(spec, effects, [self.cur.params, None], nzs=nzs, own_thread=own_thread,
                          cap_factor=cap_factor, extra=self.cur.shape)
         f = self.nuisance_then_law(f, own_thread, cap_factor)
-        f.seconds = time.perf_counter() - t0
+        f.seconds, f.lead = time.perf_counter() - t0, lead
         return f
+
+    def lead_fit(self, effect: str, spec: ModelSpec, effects, lead: int, starts, own_thread: bool,
+                 cap: float | None) -> tuple:
+        """The candidate ``spec`` fitted alone to the record that shows it best: to ``lead`` from
+        ``starts`` and, for an effect, to every other record that can reveal it, tries its law and
+        is missed by CRITERIA.unexplained_gap or more (from the one-record search's starts on it);
+        of these, the record whose gap above its noise the candidate's own fit shrinks most, in
+        units of its noise. The record the model misses most may be missed for another effect's
+        sake: a creep candidate led by a load test missed for its elastic law gained nothing
+        there, and led by the creep test took that record from 8.97 to 1.57 x noise (tuning
+        campaign 3000, docs/campaign-discovery.md, session 40). (the record's index, its ModelFit)"""
+        def alone(i: int, st) -> ModelFit:
+            r = self.records[i]
+            return fit_model(r.trace, spec.for_experiment(r.trace.experiment), effects, st, r.sc, nuisance=r.nuisance,
+                             work_cap=cap, own_thread=own_thread, deadline=self.deadline, extra=self.cur.shape)
+
+        def gain(i: int) -> float:
+            r, f = self.records[i], fits[i]
+            return (_gap(self.cur.rms_records[i], r.sigma) - _gap(f.rms, r.sigma)) / r.sigma if f.ok else -math.inf
+
+        fits = {lead: alone(lead, starts)}
+        for i in self.other_leads(effect, spec, lead):
+            fits[i] = alone(i, self.starts_on(i, spec))
+        best = max(fits, key=gain)
+        return best, fits[best]
+
+    def other_leads(self, effect: str, spec: ModelSpec, lead: int) -> list:
+        """The records but ``lead`` that can reveal ``effect`` (laws.candidates), try the law ``spec``
+        gives it (laws._models_for) and that the current model misses by CRITERIA.unexplained_gap or
+        more (none for the current model refitted, ``effect`` empty)."""
+        if not effect:
+            return []
+        return [i for i, r in enumerate(self.records) if i != lead and effect in candidates(r.trace)
+                and _gap(self.cur.rms_records[i], r.sigma) >= CRITERIA.unexplained_gap * r.sigma
+                and any(m.canonical == spec.canonical for m in _models_for(self.cur.spec, effect, r.trace))]
 
     def nuisance_then_law(self, f: CampaignFit, own_thread: bool = False, cap_factor: float = 1.0) -> CampaignFit:
         """``f`` with every record's nuisance refitted once under its law and the law fitted again

@@ -71,6 +71,7 @@ class CampaignFit:
     message: str = ""
     seconds: float = 0.0
     shape: tuple = ()              # shape terms freed beyond the law's (Campaign.finer_bank), as ModelFit.shape
+    lead: int | None = None        # a candidate's fit: the record it was fitted to alone first (Campaign.lead_fit)
 
     @property
     def model(self) -> str:

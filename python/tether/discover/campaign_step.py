@@ -26,7 +26,8 @@ class Steps:
         """(effect, model, lead record, starts) of every candidate: the effects any record can reveal
         that the model lacks, each with its laws (laws._models_for; Kawabata's branches only where
         every record is a load test); its lead, of the records that can reveal it the one the model
-        misses most (in units of its noise), and the one-record search's starts on that record."""
+        misses most (in units of its noise), and the one-record search's starts on that record;
+        Campaign.lead_fit may lead the candidate's fit by another record that can reveal it."""
         out = []
         payload = any(r.trace.rig == "payload" for r in self.records)
         for e in EFFECTS:
@@ -39,6 +40,12 @@ class Steps:
                     continue
                 out.append((e, new, i, self.starts_on(i, new)))
         return out
+
+    def led_by(self, cands: list, fits: list) -> list:
+        """The candidates (effect, model, lead, starts) with the lead each fit took (Campaign.lead_fit)
+        and its starts."""
+        return [c if f.lead is None or f.lead == c[2] else (c[0], c[1], f.lead, self.starts_on(f.lead, c[1]))
+                for c, f in zip(cands, fits)]
 
     def starts_on(self, i: int, new: ModelSpec) -> list:
         """The one-record search's starts of ``new`` (the current model and one effect) on record i,
@@ -112,6 +119,7 @@ class Steps:
             return self.candidate_fit(c[0], c[1], cur.effects + (c[0],), c[2], c[3], own, factor)
 
         fits = _side_by_side(fitted, cands)
+        cands = self.led_by(cands, fits)
         wider = [] if self.budget_hit else self.wider_candidates(cands, fits)
         cands, fits = cands + wider, fits + _side_by_side(fitted, wider)
         results = self.judge_all(cands, fits)
