@@ -5,14 +5,15 @@ from __future__ import annotations
 
 from ..models import IWAN_EPS, IWAN_K
 from .fitting import fit_model
-from .judge import _law_judged, _shape_heldout_asked, _shape_judged, bic_change
+from .judge import _law_judged, bic_change
 from .records import Refinement
 from .rival import bank_cap_factor, finer_banks
 from .campaign_records import _law_only
 
 
 class Reseeding:
-    """Needs Campaign's records, cur, cur_held, refinements, fit, adopt, heldout_of, worst_record."""
+    """Needs Campaign's records, cur, cur_held, refinements, fit, adopt, heldout_of, worst_record and
+    Shapes.shape_verdict."""
 
     def finer_bank(self) -> None:
         """The campaign's search fits an Iwan bank of IWAN_FIT_ELEMENTS elements on a fixed grid of
@@ -68,13 +69,7 @@ class Reseeding:
         if fm is None or not fm.ok:
             ok, verdict, fm = False, f"the fit failed: {failed}", None
         else:
-            bic = bic_change(cur, fm, self.n)
-            if bic < 0.0 and fm.rms < cur.rms and _shape_heldout_asked(cur.rms, self.cur_held, fm.rms, 1.0):
-                held = self.heldout_of(fm)
-            ok, verdict = _shape_judged(cur.rms, fm.rms, bic, self.cur_held, held, 1.0,
-                                        f"RMS error {cur.rms:.2f} -> {fm.rms:.2f} x noise, BIC changes by "
-                                        f"{bic:+.1f}: the bank of {elements} stays")
-            ok = ok and not self.budget_hit
+            ok, verdict, held, bic = self.shape_verdict(cur, fm, f"the bank of {elements} stays")
             if ok:
                 verdict = f"{len(IWAN_K)} elements for {elements}: {verdict}"
         self.refinements.append(Refinement(

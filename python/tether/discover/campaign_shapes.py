@@ -82,16 +82,23 @@ class Shapes:
         if not fm.ok:
             ok, verdict = False, f"the fit failed: {fm.message}"
         else:
-            bic = bic_change(cur, fm, self.n)
-            if bic < 0.0 and fm.rms < cur.rms and _shape_heldout_asked(cur.rms, self.cur_held, fm.rms, 1.0):
-                held = self.heldout_of(fm)
-            ok, verdict = _shape_judged(cur.rms, fm.rms, bic, self.cur_held, held, 1.0,
-                                        f"RMS error {cur.rms:.2f} -> {fm.rms:.2f} x noise, BIC changes by "
-                                        f"{bic:+.1f}: the terms do not earn their place")
-            ok = ok and not self.budget_hit
+            ok, verdict, held, bic = self.shape_verdict(cur, fm, "the terms do not earn their place")
         r = Refinement(effect, tuple(group), cur.rms, fm.rms if fm.ok else math.inf, self.cur_held, held, bic, ok,
                        verdict, {k: float(fm.params[k]) for k in group if k in fm.params} if fm.ok else {})
         self.refinements.append(r)
         self.say(f"  shape of {effect} ({' '.join(group)}): {'kept' if ok else 'not kept'}: {verdict}"
                  + (f" ({self.per_record(fm)})" if fm.ok else ""))
         return ok, r
+
+    def shape_verdict(self, cur, fm, refused: str) -> tuple:
+        """Terms freed beyond a named law's (a shape, a finer bank) in the fit ``fm``, judged against
+        ``cur`` by the shape rule (judge._shape_judged on the campaign's error in noise units: a lower
+        BIC and error, the held-out parts' prediction no worse where asked); ``refused``: why they
+        stay out where the BIC or the error does not fall. (kept, verdict, held-out error, BIC change)"""
+        held, bic = float("nan"), bic_change(cur, fm, self.n)
+        if bic < 0.0 and fm.rms < cur.rms and _shape_heldout_asked(cur.rms, self.cur_held, fm.rms, 1.0):
+            held = self.heldout_of(fm)
+        ok, verdict = _shape_judged(cur.rms, fm.rms, bic, self.cur_held, held, 1.0,
+                                    f"RMS error {cur.rms:.2f} -> {fm.rms:.2f} x noise, BIC changes by {bic:+.1f}: "
+                                    + refused)
+        return ok and not self.budget_hit, verdict, held, bic
