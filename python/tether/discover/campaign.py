@@ -319,20 +319,24 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         sake: a creep candidate led by a load test missed for its elastic law gained nothing
         there, and led by the creep test took that record from 8.97 to 1.57 x noise (tuning
         campaign 3000, docs/campaign-discovery.md, session 40). (the record's index, its ModelFit)"""
-        def alone(i: int, st) -> ModelFit:
-            r = self.records[i]
-            return fit_model(r.trace, spec.for_experiment(r.trace.experiment), effects, st, r.sc, nuisance=r.nuisance,
-                             work_cap=cap, own_thread=own_thread, deadline=self.deadline, extra=self.cur.shape)
-
         def gain(i: int) -> float:
             r, f = self.records[i], fits[i]
             return (_gap(self.cur.rms_records[i], r.sigma) - _gap(f.rms, r.sigma)) / r.sigma if f.ok else -math.inf
 
-        fits = {lead: alone(lead, starts)}
+        fits = {lead: self.fit_alone(lead, spec, effects, starts, self.cur.shape, cap, own_thread)}
         for i in self.other_leads(effect, spec, lead):
-            fits[i] = alone(i, self.starts_on(i, spec))
+            fits[i] = self.fit_alone(i, spec, effects, self.starts_on(i, spec), self.cur.shape, cap, own_thread)
         best = max(fits, key=gain)
         return best, fits[best]
+
+    def fit_alone(self, i: int, spec: ModelSpec, effects, starts, extra: Sequence[str], cap: float | None,
+                  own_thread: bool = False) -> ModelFit:
+        """``spec`` fitted to record i alone from ``starts``, the record's nuisance free, ``extra`` shape
+        terms free beside the law's, within the work cap ``cap`` and the budget's deadline: the first
+        fit of a candidate, a shape and a finer Iwan bank, each then carried to every record."""
+        r = self.records[i]
+        return fit_model(r.trace, spec.for_experiment(r.trace.experiment), effects, starts, r.sc, nuisance=r.nuisance,
+                         work_cap=cap, own_thread=own_thread, deadline=self.deadline, extra=extra)
 
     def other_leads(self, effect: str, spec: ModelSpec, lead: int) -> list:
         """The records but ``lead`` that can reveal ``effect`` (laws.candidates), try the law ``spec``

@@ -4,7 +4,6 @@ mixin of discover.campaign.Campaign."""
 from __future__ import annotations
 
 from ..models import IWAN_EPS, IWAN_K
-from .fitting import fit_model
 from .judge import _law_judged, bic_change
 from .records import Refinement
 from .rival import bank_cap_factor, finer_banks
@@ -12,8 +11,8 @@ from .campaign_records import _law_only
 
 
 class Reseeding:
-    """Needs Campaign's records, cur, cur_held, refinements, fit, adopt, heldout_of, worst_record and
-    Shapes.shape_verdict."""
+    """Needs Campaign's records, cur, cur_held, refinements, fit, fit_alone, adopt, heldout_of,
+    worst_record and Shapes.shape_verdict."""
 
     def finer_bank(self) -> None:
         """The campaign's search fits an Iwan bank of IWAN_FIT_ELEMENTS elements on a fixed grid of
@@ -49,10 +48,8 @@ class Reseeding:
         self.say(f"a finer Iwan bank ({len(IWAN_K)} elements for {len(bank)}), fitted to {lead.name} first")
         extra = tuple(m.shape) + tuple(n for n in IWAN_K + IWAN_EPS if n not in m.free and n not in m.shape)
         factor = self.cap_factor_for(m) * bank_cap_factor(len(IWAN_K))
-        alone = fit_model(lead.trace, m.spec.for_experiment(lead.trace.experiment), m.effects,
-                          [{**m.params, **m.nz[i], **b} for b in banks], lead.sc,
-                          nuisance=lead.nuisance, extra=extra, deadline=self.deadline,
-                          work_cap=None if self.cap is None else self.cap * factor)
+        alone = self.fit_alone(i, m.spec, m.effects, [{**m.params, **m.nz[i], **b} for b in banks], extra,
+                               None if self.cap is None else self.cap * factor)
         terms = tuple(n for n in extra if n not in m.shape)
         if not alone.ok:
             return None, f"on {lead.name}: {alone.message}", len(bank), terms

@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 
 from .campaign_records import _law_only
-from .fitting import fit_model
 from .judge import _shape_heldout_asked, _shape_judged, bic_change
 from .records import Refinement
 from .refine import _shape_groups
@@ -14,7 +13,8 @@ from .starts import _damping_table_start, _shape_start
 
 
 class Shapes:
-    """Needs Campaign's records, cur, cur_held, refinements, fit, adopt, heldout_of, worst_record."""
+    """Needs Campaign's records, cur, cur_held, refinements, fit, fit_alone, adopt, heldout_of,
+    worst_record."""
 
     def refine_shapes(self) -> None:
         """Where a record is still missed, the shape terms of each named law (laws.SHAPE_TERMS: the
@@ -62,9 +62,7 @@ class Shapes:
             starts += [] if table is None else [{**flat, **table}]
         factor = self.cap_factor_for(m)
         self.say(f"shape of {effect} ({' '.join(group)}), fitted to {lead.name} first")
-        alone = fit_model(lead.trace, m.spec.for_experiment(lead.trace.experiment), m.effects, starts, lead.sc,
-                          nuisance=lead.nuisance, extra=extra, deadline=self.deadline,
-                          work_cap=None if self.cap is None else self.cap * factor)
+        alone = self.fit_alone(i, m.spec, m.effects, starts, extra, None if self.cap is None else self.cap * factor)
         shaped = {**m.params, **_law_only(flat, m.spec)}
         if alone.ok:
             nzs = [dict(nz) for nz in m.nz]
