@@ -900,3 +900,38 @@ def test_a_candidate_is_led_by_the_record_that_shows_it_best(tmp_path):
     assert camp.other_leads("", spec, 0) == []          # the current model refitted keeps its lead
     f = camp.candidate_fit("creep", spec, ("creep",), 0, camp.starts_on(0, spec))
     assert f.ok and f.lead == 1
+
+
+def test_shapes_judged_before_the_budget_ran_out_are_not_kept():
+    """Where the time budget runs out during one shape group's fit (Campaign.refine_shapes), a group
+    judged and kept before it is on record as not kept, as the one-record search reports it
+    (judge._not_kept_for_budget), and no model is adopted: the steps resumed read a kept refinement
+    as a law put in. A cubic and Bouc-Wen: three groups; the first kept, the budget spent in the
+    second, the third not fitted."""
+    from types import SimpleNamespace
+
+    from tether.discover.campaign_shapes import Shapes
+
+    class Stage(Shapes):
+        pass
+
+    stage = Stage()
+    stage.cur = SimpleNamespace(spec=parse_model("cubic+boucwen"), effects=("nonlinear_stiffness", "hysteresis"),
+                                shape=(), free=["a1", "a2", "a3", "bw_A"], rms=3.0)
+    stage.refinements, stage.budget_hit, stage.cur_held, adopted, fitted = [], False, 3.0, [], []
+    stage.within_noise = lambda m: False
+    stage.say = lambda s: None
+    stage.per_record = lambda m: ""
+    stage.adopt = lambda m, held: adopted.append(m)
+
+    def shape_fit(m, effect, group):
+        fitted.append(group)
+        stage.budget_hit = len(fitted) == 2      # the budget runs out while the second group is fitted
+        return SimpleNamespace(ok=True, rms=2.0, params={})
+
+    stage.shape_fit = shape_fit
+    stage.shape_verdict = lambda cur, fm, refused: (not stage.budget_hit, "kept", float("nan"), -10.0)
+    stage.refine_shapes()
+    assert len(fitted) == 2 and len(stage.refinements) == 2 and adopted == [], (fitted, stage.refinements)
+    assert not any(r.accepted for r in stage.refinements), stage.refinements
+    assert "time budget ran out" in stage.refinements[0].verdict

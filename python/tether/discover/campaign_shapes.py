@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from .campaign_records import _law_only
-from .judge import _shape_heldout_asked, _shape_judged, bic_change
+from .judge import _not_kept_for_budget, _shape_heldout_asked, _shape_judged, bic_change
 from .records import Refinement
 from .refine import _shape_groups
 from .starts import _damping_table_start, _shape_start
@@ -32,6 +32,7 @@ class Shapes:
         best, first = None, len(self.refinements)
         for effect, group in groups:
             if self.budget_hit:
+                _not_kept_for_budget(self.refinements[first:])
                 return
             fm = self.shape_fit(cur, effect, group)
             ok, r = self.shape_judged(cur, fm, effect, group)
