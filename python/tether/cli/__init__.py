@@ -20,10 +20,14 @@ The global options --quiet, --verbose and --debug go before or after the subcomm
 from __future__ import annotations
 
 import argparse
+import atexit
+import os
 import signal
 import sys
+import threading
 from typing import Sequence
 
+from .. import atomic as _atomic
 from . import console, demo, discover, fit, simulate, sweep, validate
 
 #: subcommand modules, in the order ``tether --help`` lists them
@@ -101,24 +105,22 @@ _SIGNALS = (signal.SIGTERM, signal.SIGINT)
 
 
 def _on_signal(signum, frame):  # noqa: ARG001 - signal API
-    from ..atomic import remove_pending
-
-    remove_pending()
+    _atomic.remove_pending()
     raise Terminated(signum)
 
 
-def _signal_thread() -> None:
+def _signal_thread(ready) -> None:
     """The process's own command line: wait for SIGTERM/SIGINT in this thread and end the process
     at once, whatever the main thread is doing (a fit inside the engine runs no Python, so a
-    Python handler would wait for it: 9 s in a discovery)."""
-    import atexit
-    import os
+    Python handler would wait for it: 9 s in a discovery).
 
-    from ..atomic import LOCK, remove_pending
-
+    Everything it uses is imported by the main thread before it starts: a daemon thread still
+    importing when a short command (``--help``) ends crashed the interpreter's finalization
+    (SIGSEGV, docs/cli.md)."""
+    ready.set()
     signum = signal.sigwait(set(_SIGNALS))
-    with LOCK:                  # no temporary file is being created or renamed now
-        remove_pending()
+    with _atomic.LOCK:          # no temporary file is being created or renamed now
+        _atomic.remove_pending()
         console.error(f"terminated by {signal.Signals(signum).name}; no partial output was left")
         for stream in (sys.stdout, sys.stderr):
             try:
@@ -133,12 +135,13 @@ def _install_signal_handlers(own_process: bool) -> dict:
     """SIGTERM and SIGINT remove pending temporary output, then end the run; returns the old handlers.
 
     In a process of its own (the console script) a thread waits for the signals, blocked in every
-    other thread; called as a library, Python handlers raise :class:`Terminated` in the caller."""
-    import threading
-
+    other thread, and this returns once that thread is waiting; called as a library, Python
+    handlers raise :class:`Terminated` in the caller."""
     if own_process and hasattr(signal, "pthread_sigmask") and threading.current_thread() is threading.main_thread():
         signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)     # inherited by every thread started later
-        threading.Thread(target=_signal_thread, name="tether-signals", daemon=True).start()
+        ready = threading.Event()
+        threading.Thread(target=_signal_thread, args=(ready,), name="tether-signals", daemon=True).start()
+        ready.wait()
         return {}
     old = {}
     try:
@@ -151,8 +154,6 @@ def _install_signal_handlers(own_process: bool) -> dict:
 
 def _silence_stdout() -> None:
     """After a broken pipe: point stdout at /dev/null so that the exit's flush says nothing."""
-    import os
-
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
