@@ -401,8 +401,10 @@ def test_an_effects_gap_is_read_on_the_records_that_can_reveal_it(tmp_path):
     gap, however far the free vibration is missed (campaign 1000 --large, 2026-11-27: creep took
     its creep test from 15.62 to 1.18 x noise, the free vibration stayed at 20.6 x, and the pooled
     gap shrank only from 15.03 to 11.38 sigma: refused). The expectation is the one-record rule on
-    the creep test alone. An effect every record can reveal is still judged on the whole campaign,
-    and the re-test of a named effect reads the same records."""
+    the creep test alone. So is an effect every record can reveal, where one record reveals it alone
+    (tuning campaign 1005: the free vibration and the creep test, each missed for the effect the
+    other reveals); where none does, on the whole campaign. The re-test of a named effect reads the
+    same records."""
     from tether.discover.campaign import Campaign, CampaignFit
     from tether.discover.judge import _bic, full_data_verdict
 
@@ -430,9 +432,15 @@ def test_an_effects_gap_is_read_on_the_records_that_can_reveal_it(tmp_path):
     # the creep test's own gap barely shrinks: refused, as on that record alone
     weak = camp.judge("creep", fit([20.6, 12.0], ["k", "a", "b", "c"]))
     assert not weak.accepted and not full_data_verdict(1.0, 15.62, 12.0, -1.0, 3)[0]
-    # a cubic law, which both records can reveal, gaining the same on the creep test: pooled, refused
+    # a cubic law, which both records can reveal, gaining the same on the creep test alone: read on
+    # the record that reveals it, as creep is (the free vibration may be missed for another effect)
     cubic = camp.judge("nonlinear_stiffness", fit([20.6, 1.18], ["k", "a", "b", "c"]))
-    assert not cubic.accepted and "reveal" not in cubic.verdict
+    assert cubic.accepted and "the records that reveal it" in cubic.verdict
+    assert not full_data_verdict(1.0, camp.cur.rms, cubic.fit.rms, cubic.bic_change, 3)[0]
+    # gaining a little on both, neither record revealing it alone: pooled, refused
+    assert not any(camp.reveals(i, b, a, 3) for i, (b, a) in enumerate(zip([20.6, 15.62], [19.0, 12.0])))
+    spread = camp.judge("nonlinear_stiffness", fit([19.0, 12.0], ["k", "a", "b", "c"]))
+    assert not spread.accepted and "reveal" not in spread.verdict and spread.bic_change < 0
     # removing creep again is judged on the creep test too: kept
     keep, why = camp.effect_verdict("creep", camp.cur, creep.fit, creep.bic_change, 3)
     assert keep and "reveal" in why

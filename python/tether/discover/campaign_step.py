@@ -236,11 +236,16 @@ class Steps:
         return win
 
     def revealing(self, c: CampaignCandidate) -> list:
-        """The records that reveal ``c``'s effect: of those that can (laws.unrevealed), those where
-        the candidate meets the one-record rule on their own samples (reveals: their own error
-        before and after, their own BIC with its added parameters)."""
-        return [i for i, (r, b, a) in enumerate(zip(self.records, self.cur.rms_records, c.fit.rms_records))
-                if not unrevealed(r.trace, c.effect) and self.reveals(i, b, a, c.added_parameters)]
+        """The records that reveal ``c``'s effect (shown_by) as the current model becomes ``c``'s."""
+        return self.shown_by(c.effect, self.cur, c.fit, c.added_parameters)
+
+    def shown_by(self, effect: str, without: CampaignFit, with_: CampaignFit, added: int) -> list:
+        """The records that reveal ``effect`` from the fit ``without`` it to the fit ``with_`` it: of
+        those that can (laws.unrevealed), those where it meets the one-record rule on their own
+        samples (reveals: their own error before and after, their own BIC with its ``added``
+        parameters)."""
+        return [i for i, (r, b, a) in enumerate(zip(self.records, without.rms_records, with_.rms_records))
+                if not unrevealed(r.trace, effect) and self.reveals(i, b, a, added)]
 
     def showing(self, c: CampaignCandidate) -> tuple | None:
         """The records whose held-out parts judge ``c``: those that reveal its effect (revealing), else
@@ -278,13 +283,17 @@ class Steps:
                        added: int) -> tuple[bool, str]:
         """The one-record rule (judge.full_data_verdict) on the campaign for ``effect``, from the fit
         ``without`` it to the fit ``with_`` it: the BIC over every record; the gap above the noise on
-        the records that can reveal the effect (laws.unrevealed), as its held-out test reads them.
-        Another record's error moves with the shared law, not with the effect, and one missed far
-        above its noise would hide the gap the effect closes where it shows (docs/campaign-discovery.md,
-        "The search")."""
-        able = self.able_to_reveal(effect)
-        ok, why = full_data_verdict(1.0, self.rms_among(without, able), self.rms_among(with_, able), bic, added)
-        return ok, why + ("" if able is None else " (the records that can reveal it)")
+        the records that reveal the effect (shown_by), else on those that can (laws.unrevealed), as
+        its held-out test reads them. Another record's error moves with the shared law, not with the
+        effect, and one missed far above its noise for an effect the model still lacks would hide
+        the gap this one closes where it shows (docs/campaign-discovery.md, "The search")."""
+        shown = tuple(self.shown_by(effect, without, with_, added))
+        among = shown or self.able_to_reveal(effect)
+        among = None if among is not None and len(among) == len(self.records) else among
+        ok, why = full_data_verdict(1.0, self.rms_among(without, among), self.rms_among(with_, among), bic, added)
+        if among is None:
+            return ok, why
+        return ok, why + (" (the records that reveal it)" if shown else " (the records that can reveal it)")
 
     def judge(self, effect: str, f: CampaignFit) -> CampaignCandidate:
         """The one-record rule on the campaign's error in noise units (sigma = 1, effect_verdict); slack, which adds
