@@ -109,7 +109,7 @@ def _on_signal(signum, frame):  # noqa: ARG001 - signal API
     raise Terminated(signum)
 
 
-def _signal_thread(ready) -> None:
+def _signal_thread(ready: threading.Event) -> None:
     """The process's own command line: wait for SIGTERM/SIGINT in this thread and end the process
     at once, whatever the main thread is doing (a fit inside the engine runs no Python, so a
     Python handler would wait for it: 9 s in a discovery).

@@ -253,12 +253,12 @@ class Steps:
         parts move with the shared law, not with the effect, and one predicted worse by a law the
         model still lacks would refuse an effect its own record predicts well (tuning campaign 1008,
         docs/campaign-discovery.md, session 39)."""
-        return self.showing_records(c.effect, self.cur, c.fit, c.added_parameters)
+        return self.showing_records(c.effect, self.revealing(c))
 
-    def showing_records(self, effect: str, without: CampaignFit, with_: CampaignFit, added: int) -> tuple | None:
-        """The records that show ``effect`` from the fit ``without`` it to the fit ``with_`` it: those
-        that reveal it (shown_by), else those that can (laws.unrevealed); None where that is every record."""
-        among = tuple(self.shown_by(effect, without, with_, added)) or self.able_to_reveal(effect)
+    def showing_records(self, effect: str, shown: list) -> tuple | None:
+        """The records that show ``effect``: ``shown``, those that reveal it (shown_by), else those
+        that can (laws.unrevealed); None where that is every record."""
+        among = tuple(shown) or self.able_to_reveal(effect)
         return None if among is not None and len(among) == len(self.records) else among
 
     def record_fit(self, f: CampaignFit, i: int) -> ModelFit:
@@ -292,11 +292,11 @@ class Steps:
         its held-out test reads them. Another record's error moves with the shared law, not with the
         effect, and one missed far above its noise for an effect the model still lacks would hide
         the gap this one closes where it shows (docs/campaign-discovery.md, "The search")."""
-        among = self.showing_records(effect, without, with_, added)
+        shown = self.shown_by(effect, without, with_, added)
+        among = self.showing_records(effect, shown)
         ok, why = full_data_verdict(1.0, self.rms_among(without, among), self.rms_among(with_, among), bic, added)
         if among is None:
             return ok, why
-        shown = set(among) <= set(self.shown_by(effect, without, with_, added))
         return ok, why + (" (the records that reveal it)" if shown else " (the records that can reveal it)")
 
     def judge(self, effect: str, f: CampaignFit) -> CampaignCandidate:
