@@ -251,19 +251,20 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         return self.evaluate(spec, effects, params, list(best.free), start_nzs[best_k], best.message,
                              time.perf_counter() - t0, shape)
 
-    def refit_nuisance(self, spec: ModelSpec, params: dict, nzs: list | None = None, own_thread: bool = False) -> list:
+    def refit_nuisance(self, spec: ModelSpec, params: dict, nzs: list | None = None, own_thread: bool = False,
+                       keep: int | None = None) -> list:
         """Each record's nuisance values fitted with the shared law ``params`` held (a short fit per
-        record, from ``nzs``, default the records' current values); a record whose fit fails keeps
-        its values."""
+        record, from ``nzs``, default the records' current values); a record whose fit fails, and
+        record ``keep``, keep their values."""
         from ..fit import fit_traces
 
         nzs = [r.nz for r in self.records] if nzs is None else nzs
         options = {**ENGINE_OPTIONS, **({"n_threads": 1} if own_thread else {})}
         out = []
         law = _law_only(params, spec)
-        for r, nz in zip(self.records, nzs):
-            if not r.nuisance:
-                out.append({})
+        for i, (r, nz) in enumerate(zip(self.records, nzs)):
+            if not r.nuisance or i == keep:
+                out.append({} if not r.nuisance else dict(nz))
                 continue
             start = {}
             for k in r.nuisance:
@@ -277,6 +278,19 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
                 out.append(dict(nz))
         return out
 
+    def lead_starts(self, spec: ModelSpec, law: dict, nzs: list, lead: int, alone: ModelFit,
+                    own_thread: bool = False) -> tuple:
+        """The starts of a joint fit from ``law``, fitted to record ``lead`` alone (``alone``) and
+        completed by the model it extends: the lead's nuisance from that fit, every other record's
+        as it is (``nzs``) and, as a second start, refitted under ``law``. Held where the law it
+        replaces left them, the others' nuisance values may carry what that law missed and sink the
+        start; refitted, they may absorb what the lead's law has wrong of a record that shows it
+        better (docs/campaign-discovery.md, "The search"). (starts, start_nzs)"""
+        held = [dict(nz) for nz in nzs]
+        held[lead] = dict(alone.nuisance)
+        refitted = self.refit_nuisance(spec, law, held, own_thread, keep=lead)
+        return ([law], [held]) if refitted == held else ([law, law], [held, refitted])
+
     def candidate_fit(self, effect: str, spec: ModelSpec, effects, lead: int, starts, own_thread: bool = False,
                       cap_factor: float = 1.0) -> CampaignFit:
         """A candidate fitted to the campaign. First to one record alone, the one that shows it best
@@ -284,8 +298,9 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         carry what the new effect explains (a free vibration's release point bent by a law without
         slack: held there, a joint fit with slack stopped at 1,100 x noise where the record alone
         reached 1.0 x). Then the shared law to all records from two starts: that record's law (its
-        nuisance at its own fit's values), and the campaign's current law with the new terms at
-        that record's values (every record's nuisance at its current values: one record's law may
+        nuisance at its own fit's values, every other record's as it is or refitted under that law:
+        lead_starts), and the campaign's current law with the new terms at that record's
+        values (every record's nuisance at its current values: one record's law may
         suit that record alone, and a joint fit from it ended above the model it extends, a
         campaign of seed 1000's creep); where that record's fit fails, from the current law and
         from the campaign's data-based estimate. Then once the records' nuisance refitted and the
@@ -297,11 +312,9 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         nzs = [dict(x.nz) for x in self.records]
         if alone.ok:
             lead_law = _law_only(alone.params, spec)
-            lead_nzs = [dict(nz) for nz in nzs]
-            lead_nzs[lead] = dict(alone.nuisance)
-            f = self.fit(spec, effects, [{**self.cur.params, **lead_law}, {**lead_law, **self.cur.params}],
-                         start_nzs=[lead_nzs, nzs], own_thread=own_thread, cap_factor=cap_factor,
-                         extra=self.cur.shape)
+            starts, start_nzs = self.lead_starts(spec, {**self.cur.params, **lead_law}, nzs, lead, alone, own_thread)
+            f = self.fit(spec, effects, starts + [{**lead_law, **self.cur.params}], start_nzs=start_nzs + [nzs],
+                         own_thread=own_thread, cap_factor=cap_factor, extra=self.cur.shape)
         else:
             f = self.fit(spec, effects, [self.cur.params, None], nzs=nzs, own_thread=own_thread,
                          cap_factor=cap_factor, extra=self.cur.shape)

@@ -53,10 +53,8 @@ class Reseeding:
         terms = tuple(n for n in extra if n not in m.shape)
         if not alone.ok:
             return None, f"on {lead.name}: {alone.message}", len(bank), terms
-        nzs = [dict(nz) for nz in m.nz]
-        nzs[i] = dict(alone.nuisance)
-        fm = self.fit(m.spec, m.effects, [{**m.params, **_law_only(alone.params, m.spec)}], nzs=nzs, extra=extra,
-                      cap_factor=factor)
+        starts, nzs = self.lead_starts(m.spec, {**m.params, **_law_only(alone.params, m.spec)}, m.nz, i, alone)
+        fm = self.fit(m.spec, m.effects, starts, start_nzs=nzs, extra=extra, cap_factor=factor)
         return self.nuisance_then_law(fm, cap_factor=factor), fm.message, len(bank), terms
 
     def bank_judged(self, cur, fm, failed: str, elements: int, terms: tuple) -> None:

@@ -66,10 +66,9 @@ class Shapes:
         alone = self.fit_alone(i, m.spec, m.effects, starts, extra, None if self.cap is None else self.cap * factor)
         shaped = {**m.params, **_law_only(flat, m.spec)}
         if alone.ok:
-            nzs = [dict(nz) for nz in m.nz]
-            nzs[i] = dict(alone.nuisance)
-            fm = self.fit(m.spec, m.effects, [{**m.params, **_law_only(alone.params, m.spec)}, shaped],
-                          start_nzs=[nzs, [dict(nz) for nz in m.nz]], extra=extra, cap_factor=factor)
+            starts, nzs = self.lead_starts(m.spec, {**m.params, **_law_only(alone.params, m.spec)}, m.nz, i, alone)
+            fm = self.fit(m.spec, m.effects, starts + [shaped], start_nzs=nzs + [[dict(nz) for nz in m.nz]],
+                          extra=extra, cap_factor=factor)
         else:
             self.say(f"  its fit to {lead.name} alone failed ({alone.message}): fitted to every record from the start")
             fm = self.fit(m.spec, m.effects, [shaped], nzs=m.nz, extra=extra, cap_factor=factor)
