@@ -968,3 +968,25 @@ def test_a_candidate_led_by_one_record_starts_its_joint_fit_also_with_the_others
     f = camp.candidate_fit("hysteresis", iwan, camp.cur.effects + ("hysteresis",), 0, camp.starts_on(0, iwan))
     assert f.ok and f.lead == 0
     assert all(e <= 1.5 * r.sigma for e, r in zip(f.rms_records, camp.records)), camp.per_record(f)
+
+
+def test_a_named_laws_refinement_is_led_by_the_worst_of_the_records_that_revealed_it():
+    """A named law's shape, finer bank or wider law is fitted first to the record that shows the
+    effect worst of those that revealed it (Campaign.revealed_named), not to a record missed for an
+    effect the model still lacks: tuning campaign 3000's cubic, revealed by its free vibration and
+    load test, with its creep test at 9.20 x noise for want of creep (docs/campaign-discovery.md,
+    session 43)."""
+    from types import SimpleNamespace
+
+    from tether.discover.campaign import Campaign
+
+    c = Campaign.__new__(Campaign)
+    c.records = [SimpleNamespace(name=n, sigma=1.0) for n in ("fv", "load", "creep")]
+    c.steps = [SimpleNamespace(effect="nonlinear_stiffness", revealed_by=["fv", "load"]),
+               SimpleNamespace(effect=None, revealed_by=[])]
+    cur = SimpleNamespace(rms_records=[1.68, 8.81, 9.20])
+    assert c.worst_record(cur) == 2
+    assert c.revealed_named("nonlinear_stiffness") == (0, 1)
+    assert c.worst_record(cur, c.revealed_named("nonlinear_stiffness")) == 1
+    c.able_to_reveal = lambda effect: (0, 2)      # an effect no step named: the records that can reveal it
+    assert c.revealed_named("hysteresis") == (0, 2)

@@ -532,8 +532,8 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
             cur = self.cur
             if self.budget_hit or self.within_noise(cur) or effect not in cur.effects or _law_of(cur.spec, effect) != law:
                 continue
-            able = [i for i, r in enumerate(self.records) if effect in candidates(r.trace)]
-            if not able:
+            able = self.revealed_named(effect)
+            if able == ():
                 continue
             i = self.worst_record(cur, able)
             lead = self.records[i]

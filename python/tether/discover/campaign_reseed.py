@@ -12,7 +12,7 @@ from .campaign_records import _law_only
 
 class Reseeding:
     """Needs Campaign's records, cur, cur_held, refinements, fit, fit_alone, adopt, heldout_of,
-    worst_record and Shapes.shape_verdict."""
+    worst_record, revealed_named and Shapes.shape_verdict."""
 
     def finer_bank(self) -> None:
         """The campaign's search fits an Iwan bank of IWAN_FIT_ELEMENTS elements on a fixed grid of
@@ -32,14 +32,14 @@ class Reseeding:
 
     def finer_fit(self, m):
         """``m``'s Iwan bank made finer (rival._finer_spread, rival._finer_kept: sixteen elements,
-        every slip strain free) and fitted first to the record that shows the hysteresis worst, its
-        nuisance free, then to every record jointly from there (the route the campaign's candidates
+        every slip strain free) and fitted first to the record that shows the hysteresis worst (of those
+        that revealed it, revealed_named), its nuisance free, then to every record jointly from there (the route the campaign's candidates
         take). (the fit or None where the lead's fit failed, why it failed, the bank's elements
         before, the terms freed); None where ``m`` has no bank to make finer."""
         bank = [n for n in IWAN_K if n in m.free]
         if m.spec.hysteresis != "iwan" or not bank or len(bank) >= len(IWAN_K):
             return None
-        able = self.able_to_reveal("hysteresis")
+        able = self.revealed_named("hysteresis")
         banks = finer_banks(m.params, bank)
         if able == () or not banks:
             return None

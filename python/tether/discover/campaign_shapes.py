@@ -14,7 +14,7 @@ from .starts import _damping_table_start, _shape_start
 
 class Shapes:
     """Needs Campaign's records, cur, cur_held, refinements, fit, fit_alone, adopt, heldout_of,
-    worst_record."""
+    worst_record, revealed_named."""
 
     def refine_shapes(self) -> None:
         """Where a record is still missed, the shape terms of each named law (laws.SHAPE_TERMS: the
@@ -48,12 +48,11 @@ class Shapes:
 
     def shape_fit(self, m, effect: str, group: tuple):
         """``m`` with the shape terms ``group`` of ``effect``'s law free, fitted first to the record that
-        shows the effect worst, its nuisance free, from the one-record search's shape starts on it
+        shows the effect worst (of those that revealed it, revealed_named), its nuisance free, from the one-record search's shape starts on it
         (starts._shape_start; the damping table also from the rig's equation error), then to every
         record jointly from there and from the shape start itself (the route the campaign's
         candidates take; from the shape start alone where that record's fit fails)."""
-        able = self.able_to_reveal(effect)
-        i = self.worst_record(m, able)
+        i = self.worst_record(m, self.revealed_named(effect))
         lead = self.records[i]
         extra = tuple(m.shape) + tuple(group)
         flat = _shape_start({**m.params, **m.nz[i]}, group, lead.sc)

@@ -278,6 +278,16 @@ class Steps:
         able = tuple(i for i, r in enumerate(self.records) if not unrevealed(r.trace, effect))
         return None if len(able) == len(self.records) else able
 
+    def revealed_named(self, effect: str) -> tuple | None:
+        """The records that revealed the named ``effect`` (the last step that added it), else those
+        that can reveal it (able_to_reveal). A named law's shape, finer bank or wider law is led by
+        the worst of these: another record's misfit may be an effect the model still lacks (a creep
+        test missed for want of creep bent the cubic's power term to it, tuning campaign 3000,
+        docs/campaign-discovery.md, session 43)."""
+        names = next((s.revealed_by for s in reversed(self.steps) if s.effect == effect), [])
+        shown = tuple(i for i, r in enumerate(self.records) if r.name in names)
+        return shown or self.able_to_reveal(effect)
+
     def rms_among(self, f: CampaignFit, among: tuple | None) -> float:
         """The campaign's error in noise units on the records ``among`` (indices; every record where None)."""
         if among is None:
