@@ -970,6 +970,31 @@ def test_a_candidate_led_by_one_record_starts_its_joint_fit_also_with_the_others
     assert all(e <= 1.5 * r.sigma for e, r in zip(f.rms_records, camp.records)), camp.per_record(f)
 
 
+def test_a_campaign_tests_each_effect_whose_law_changed_beside_the_other_changed_law():
+    """The campaign's re-test after the last stages (Campaign.retest_after_refinements) where two
+    laws changed (a finer Iwan bank and the cubic's shape): every named effect is tested, each of
+    the two beside the other's new law; where one law changed, every effect but its own."""
+    from types import SimpleNamespace
+
+    from tether.discover.campaign import Campaign
+    from tether.discover.records import Refinement
+
+    def refined(effect):
+        return Refinement(effect, ("p",), 4.7, 2.6, 5.8, 4.7, -1800.0, True, "")
+
+    for changed, expected in ((("hysteresis", "nonlinear_stiffness"), ["hysteresis", "slack", "nonlinear_stiffness"]),
+                              (("hysteresis",), ["slack", "nonlinear_stiffness"])):
+        c = Campaign.__new__(Campaign)
+        c.refinements, c.retested_at, c.budget_hit, c.base_effects = [refined(e) for e in changed], 0, False, ()
+        c.steps = [SimpleNamespace(effect="slack")]
+        c.cur = SimpleNamespace(effects=("hysteresis", "slack", "nonlinear_stiffness"))
+        asked = []
+        c.retest = lambda effects, step, beside: asked.append(list(effects)) and False
+        c.retest_after_refinements()
+        assert asked == [expected], (changed, asked)
+        assert c.retested_at == len(changed)
+
+
 def test_a_named_laws_refinement_is_led_by_the_worst_of_the_records_that_revealed_it():
     """A named law's shape, finer bank or wider law is fitted first to the record that shows the
     effect worst of those that revealed it (Campaign.revealed_named), not to a record missed for an

@@ -50,7 +50,7 @@ from ..traces import Trace
 from .document import ordinal
 from .fitting import (CAP_SIMULATIONS, DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict,
                       work_ratio)
-from .judge import CRITERIA, _gap, _law_judged, bic_change
+from .judge import CRITERIA, _gap, _law_judged, bic_change, retested_beside_refinements
 from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates,
                    free_parameters)
 from .nuisance import baked, nuisance_parameters, nuisance_start
@@ -704,14 +704,15 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         """Every named effect tested again where a last stage put another law in (the rival or a
         wider law) after the last step's re-tests (the one-record search's
         Search.retest_after_refinements): an effect named to make up for a law's wrong form need
-        not earn its place once the form is right. The effects whose own law changed are not
-        tested; removed one at a time, the rest tested again after each removal."""
+        not earn its place once the form is right. Not tested: an effect whose own law alone
+        changed (judge.retested_beside_refinements); removed one at a time, the rest tested again
+        after each removal."""
         changed = {r.effect for r in self.refinements[self.retested_at:] if r.accepted}
         if not changed or not self.steps:
             return
         beside = "the refined laws (" + ", ".join(sorted(changed)) + ")"
         while not self.budget_hit and self.retest(
-                [x for x in self.cur.effects if x not in self.base_effects and x not in changed], self.steps[-1],
+                retested_beside_refinements([x for x in self.cur.effects if x not in self.base_effects], changed), self.steps[-1],
                 beside):
             pass
         self.retested_at = len(self.refinements)

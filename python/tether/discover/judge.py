@@ -277,6 +277,15 @@ def _shape_shrinks_gap(rms_before: float, rms: float, sigma: float) -> bool:
     return _gap(rms, sigma) <= CRITERIA.shape_gap_shrink * _gap(rms_before, sigma)
 
 
+def retested_beside_refinements(named, changed) -> list:
+    """Of the ``named`` effects, those to test again after the last stages changed the laws of the
+    effects ``changed``: every one but an effect whose own law is the only one that changed (a better
+    law only adds to what it earns), each beside the laws that changed (where a stiffness and
+    a hysteresis law both changed, each is tested beside the other's new law: a cubic named while the
+    hysteresis law was Bouc-Wen's need not earn its place beside a finer Iwan bank)."""
+    return [e for e in named if set(changed) - {e}]
+
+
 def _not_kept_for_budget(records) -> None:
     """Refinements judged while the time budget ran out are kept on record, not in the model."""
     for r in records:

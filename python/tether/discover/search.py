@@ -19,7 +19,8 @@ from .evidence import disagreement, regime_table, regimes, signatures
 from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, fit_model, ModelFit, predict,
                       SECOND_SEARCH_CAP_SHARE, work_ratio)
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
-                    bic_change, full_data_verdict, heldout_verdict, slack_heldout_unasked)
+                    bic_change, full_data_verdict, heldout_verdict, retested_beside_refinements,
+                    slack_heldout_unasked)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
 from .plan import PLAN
 from ..noise import estimate_noise
@@ -556,12 +557,13 @@ class Search(RivalBranch):
         its place): an effect named to make up for a law's wrong shape need not earn its place once
         the shape is right (the generator's Iwan friction with slack: a cubic named beside a bank on
         its grid of slip strains, whose strains were freed and idle elements restarted after it).
-        The effects whose own law changed are not tested: a better law only adds to what they earn.
+        Not tested: an effect whose own law alone changed (judge.retested_beside_refinements).
         Removed one at a time, the rest tested again after each removal."""
         changed = self.laws_changed()
         beside = "the refined laws (" + ", ".join(sorted(changed)) + ")"
         while changed and not self.budget_hit and self.retest(
-                [x for x in self.cur.effects if x not in self.base_effects and x not in changed], beside, beside):
+                retested_beside_refinements([x for x in self.cur.effects if x not in self.base_effects], changed),
+                beside, beside):
             pass
 
     def laws_changed(self) -> set:
