@@ -1015,3 +1015,33 @@ def test_a_named_laws_refinement_is_led_by_the_worst_of_the_records_that_reveale
     assert c.worst_record(cur, c.revealed_named("nonlinear_stiffness")) == 1
     c.able_to_reveal = lambda effect: (0, 2)      # an effect no step named: the records that can reveal it
     assert c.revealed_named("hysteresis") == (0, 2)
+
+
+def test_a_shape_kept_before_an_effect_was_named_is_fitted_again_after_it():
+    """A shape kept while a record was missed for an effect not yet named (the steps resumed after
+    it) is fitted again from its lead record once that effect is named (Shapes.shape_open), once per
+    set of named effects; a shape a finer Iwan bank replaced is not (forget_shapes). Tuning campaign
+    3000: the cubic's power term kept before creep left its load test at 5.81 x noise."""
+    from types import SimpleNamespace
+
+    from tether.discover.campaign_shapes import Shapes
+
+    class Stage(Shapes):
+        pass
+
+    stage = Stage()
+    bank = ("iw_eps1", "iw_eps2", "iw_eps3", "iw_eps4", "iw_eps5", "iw_eps6", "iw_eps7", "iw_eps8")
+    stage.cur = SimpleNamespace(spec=parse_model("cubic+iwan+creep"), effects=("nonlinear_stiffness", "hysteresis", "creep"),
+                                shape=("pow_F", "pow_n") + bank, free=["a1", "a3"], rms=3.0)
+    stage.shaped_beside = {("pow_F", "pow_n"): ("nonlinear_stiffness",), bank: ("nonlinear_stiffness", "hysteresis")}
+    stage.refinements, stage.budget_hit, stage.cur_held, fitted = [], False, 3.0, []
+    stage.within_noise = lambda m: False
+    stage.say = stage.per_record = lambda *a: ""
+    stage.adopt = lambda m, held: None
+    stage.shape_fit = lambda m, effect, group: fitted.append(group) or SimpleNamespace(ok=True, rms=3.5, params={})
+    stage.shape_verdict = lambda cur, fm, refused: (False, "not kept", float("nan"), 10.0)
+    stage.forget_shapes("hysteresis")
+    stage.refine_shapes()
+    assert fitted == [("pow_F", "pow_n")], fitted
+    stage.refine_shapes()                        # nothing named since: not fitted again
+    assert fitted == [("pow_F", "pow_n")], fitted

@@ -108,6 +108,7 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         self.cur: CampaignFit | None = None   # the current model, from the start model's fit on
         self.rivals: dict = {}            # effect -> {law: the shared law of its candidate's fit}
         self.retested_at = 0              # refinements up to here were followed by the re-tests
+        self.shaped_beside: dict = {}     # a shape group -> the effects named when it was last fitted
         self.stop = ""
         self.cap: float | None = None
         self.cur_work: dict = {}          # one simulation's work of the current model: own_work_ratio

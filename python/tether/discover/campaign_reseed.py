@@ -12,7 +12,7 @@ from .campaign_records import _law_only
 
 class Reseeding:
     """Needs Campaign's records, cur, cur_held, refinements, fit, fit_alone, adopt, heldout_of,
-    worst_record, revealed_named and Shapes.shape_verdict."""
+    worst_record, revealed_named and Shapes.shape_verdict, forget_shapes."""
 
     def finer_bank(self) -> None:
         """The campaign's search fits an Iwan bank of IWAN_FIT_ELEMENTS elements on a fixed grid of
@@ -73,6 +73,7 @@ class Reseeding:
         self.say(f"  a finer Iwan bank: {'kept' if ok else 'not kept'}: {verdict}"
                  + (f" ({self.per_record(fm)})" if fm else ""))
         if ok:
+            self.forget_shapes("hysteresis")        # its slip strains, every one free, replace the bank's shape
             self.adopt(fm, held)
 
     def reseeded_rival(self, cur, fm, held: float, bic: float, verdict: str, law: str):
