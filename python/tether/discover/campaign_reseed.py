@@ -32,10 +32,11 @@ class Reseeding:
 
     def finer_fit(self, m):
         """``m``'s Iwan bank made finer (rival._finer_spread, rival._finer_kept: sixteen elements,
-        every slip strain free) and fitted first to the record that shows the hysteresis worst (of those
-        that revealed it, revealed_named), its nuisance free, then to every record jointly from there (the route the campaign's candidates
-        take). (the fit or None where the lead's fit failed, why it failed, the bank's elements
-        before, the terms freed); None where ``m`` has no bank to make finer."""
+        every slip strain free) and fitted first to the record that shows the hysteresis worst (of
+        those that revealed it, revealed_named), its nuisance free, then to every record jointly
+        from there (the route the campaign's candidates take). (the fit or None where the lead's fit
+        failed, why it failed, the bank's elements before, the terms freed); None where ``m`` has no
+        bank to make finer."""
         bank = [n for n in IWAN_K if n in m.free]
         if m.spec.hysteresis != "iwan" or not bank or len(bank) >= len(IWAN_K):
             return None

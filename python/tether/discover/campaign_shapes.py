@@ -67,10 +67,11 @@ class Shapes:
 
     def shape_fit(self, m, effect: str, group: tuple):
         """``m`` with the shape terms ``group`` of ``effect``'s law free, fitted first to the record that
-        shows the effect worst (of those that revealed it, revealed_named), its nuisance free, from the one-record search's shape starts on it
-        (starts._shape_start; the damping table also from the rig's equation error), then to every
-        record jointly from there and from the shape start itself (the route the campaign's
-        candidates take; from the shape start alone where that record's fit fails)."""
+        shows the effect worst (of those that revealed it, revealed_named), its nuisance free, from
+        the one-record search's shape starts on it (starts._shape_start; the damping table also from
+        the rig's equation error), then to every record jointly from there and from the shape start
+        itself (the route the campaign's candidates take; from the shape start alone where that
+        record's fit fails)."""
         i = self.worst_record(m, self.revealed_named(effect))
         lead = self.records[i]
         extra = tuple(m.shape) + tuple(g for g in group if g not in m.shape)
