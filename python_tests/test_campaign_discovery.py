@@ -995,6 +995,35 @@ def test_a_campaign_tests_each_effect_whose_law_changed_beside_the_other_changed
         assert c.retested_at == len(changed)
 
 
+def test_a_campaign_does_not_test_an_effect_beside_a_changed_law_the_re_test_removed():
+    """Two laws changed (a finer Iwan bank and the cubic's shape) and the first re-test removes the
+    cubic: the hysteresis is then not tested again, since its own law is the only changed one left
+    in the model; slack still is."""
+    from types import SimpleNamespace
+
+    from tether.discover.campaign import Campaign
+    from tether.discover.records import Refinement
+
+    c = Campaign.__new__(Campaign)
+    c.refinements = [Refinement(e, ("p",), 4.7, 2.6, 5.8, 4.7, -1800.0, True, "")
+                     for e in ("hysteresis", "nonlinear_stiffness")]
+    c.retested_at, c.budget_hit, c.base_effects = 0, False, ()
+    c.steps = [SimpleNamespace(effect="slack")]
+    c.cur = SimpleNamespace(effects=("hysteresis", "slack", "nonlinear_stiffness"))
+    asked = []
+
+    def retest(effects, step, beside):
+        asked.append(list(effects))
+        if "nonlinear_stiffness" in c.cur.effects:
+            c.cur = SimpleNamespace(effects=("hysteresis", "slack"))
+            return True
+        return False
+
+    c.retest = retest
+    c.retest_after_refinements()
+    assert asked == [["hysteresis", "slack", "nonlinear_stiffness"], ["slack"]], asked
+
+
 def test_a_named_laws_refinement_is_led_by_the_worst_of_the_records_that_revealed_it():
     """A named law's shape, finer bank or wider law is fitted first to the record that shows the
     effect worst of those that revealed it (Campaign.revealed_named), not to a record missed for an

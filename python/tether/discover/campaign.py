@@ -713,7 +713,8 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
             return
         beside = "the refined laws (" + ", ".join(sorted(changed)) + ")"
         while not self.budget_hit and self.retest(
-                retested_beside_refinements([x for x in self.cur.effects if x not in self.base_effects], changed),
+                retested_beside_refinements([x for x in self.cur.effects if x not in self.base_effects],
+                                            changed & set(self.cur.effects)),
                 self.steps[-1], beside):
             pass
         self.retested_at = len(self.refinements)

@@ -282,7 +282,9 @@ def retested_beside_refinements(named, changed) -> list:
     effects ``changed``: every one but an effect whose own law is the only one that changed (a better
     law only adds to what it earns), each beside the laws that changed (where a stiffness and
     a hysteresis law both changed, each is tested beside the other's new law: a cubic named while the
-    hysteresis law was Bouc-Wen's need not earn its place beside a finer Iwan bank)."""
+    hysteresis law was Bouc-Wen's need not earn its place beside a finer Iwan bank). ``changed``
+    holds only the laws still in the model: a law removed by an earlier re-test is nothing to be
+    tested beside."""
     return [e for e in named if set(changed) - {e}]
 
 

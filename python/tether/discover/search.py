@@ -562,7 +562,8 @@ class Search(RivalBranch):
         changed = self.laws_changed()
         beside = "the refined laws (" + ", ".join(sorted(changed)) + ")"
         while changed and not self.budget_hit and self.retest(
-                retested_beside_refinements([x for x in self.cur.effects if x not in self.base_effects], changed),
+                retested_beside_refinements([x for x in self.cur.effects if x not in self.base_effects],
+                                            changed & set(self.cur.effects)),
                 beside, beside):
             pass
 
