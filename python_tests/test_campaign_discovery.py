@@ -1024,6 +1024,37 @@ def test_a_campaign_does_not_test_an_effect_beside_a_changed_law_the_re_test_rem
     assert asked == [["hysteresis", "slack", "nonlinear_stiffness"], ["slack"]], asked
 
 
+def test_a_step_near_the_noise_refines_the_named_laws_before_it_fits_a_further_effect():
+    """Where the campaign's error leaves a gap below CRITERIA.unexplained_gap in noise units (1.36 x:
+    a gap of 0.92), a step first runs the last stages (the named laws' shapes, the finer bank, ...)
+    and fits no candidate; once for each set of named effects, again after another is named, and not
+    where the gap is larger (1.5 x: 1.12) or nothing is named yet."""
+    from types import SimpleNamespace
+
+    from tether.discover.campaign import Campaign
+
+    def campaign(rms, named):
+        c = Campaign.__new__(Campaign)
+        c.cur = SimpleNamespace(rms=rms, effects=tuple(named))
+        c.fits, c.refined_for, c.say, c.records = [c.cur], (), (lambda line: None), [None] * 3
+        c.steps = [SimpleNamespace(effect=e) for e in named]
+        c.candidate_models = lambda: [("creep", None, 0, [])]
+        c.cap_factor_for, c.refit_current, c.within_noise = (lambda m: 1.0), (lambda factor: {}), (lambda m: False)
+        c.ran = []
+        c.last_stages = lambda: c.ran.append(tuple(c.named())) or []
+        return c
+
+    c = campaign(1.36, ("slack", "hysteresis"))
+    assert c.step() is True and c.ran == [("slack", "hysteresis")] and len(c.steps) == 2
+    assert not c.refine_first()                       # the same named effects: the step goes on
+    c.steps.append(SimpleNamespace(effect="creep"))
+    c.cur = SimpleNamespace(rms=1.2, effects=("slack", "hysteresis", "creep"))
+    assert c.refine_first() and c.ran[-1] == ("slack", "hysteresis", "creep")
+    for rms, named in ((1.5, ("slack", "hysteresis")), (1.2, ())):
+        c = campaign(rms, named)
+        assert not c.refine_first() and c.ran == []
+
+
 def test_a_named_laws_refinement_is_led_by_the_worst_of_the_records_that_revealed_it():
     """A named law's shape, finer bank or wider law is fitted first to the record that shows the
     effect worst of those that revealed it (Campaign.revealed_named), not to a record missed for an

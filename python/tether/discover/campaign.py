@@ -109,6 +109,7 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         self.rivals: dict = {}            # effect -> {law: the shared law of its candidate's fit}
         self.retested_at = 0              # refinements up to here were followed by the re-tests
         self.shaped_beside: dict = {}     # a shape group -> the effects named when it was last fitted
+        self.refined_for: tuple = ()      # the named effects the last stages ran for before a step (refine_first)
         self.stop = ""
         self.cap: float | None = None
         self.cur_work: dict = {}          # one simulation's work of the current model: own_work_ratio
@@ -486,6 +487,20 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
             self.stop = self.stop or f"the time budget of {self.budget:.0f} s was spent"
         else:
             self.stop = f"the most steps ({self.max_steps}) were taken"
+
+    def refine_first(self) -> bool:
+        """Where the campaign's error leaves a gap below CRITERIA.unexplained_gap (in noise units, the
+        one-record search's bar for searching again after its shapes), the last stages run before a
+        further step, once for each set of named effects: what is left may be a named law's shape or
+        a finer bank, and an effect named for it would then stay (tuning campaign 3021,
+        docs/campaign-discovery.md, session 44). True where they ran."""
+        named = tuple(self.named())
+        if not named or named == self.refined_for or _gap(self.cur.rms, 1.0) >= CRITERIA.unexplained_gap:
+            return False
+        self.refined_for = named
+        self.say(f"near the noise ({self.cur.rms:.2f} x): the named laws refined before a further step")
+        self.last_stages()
+        return True
 
     def resume_steps(self, kept: list) -> None:
         """The steps once more where the last stages kept a law (``kept``: its effects) and a record is

@@ -112,6 +112,8 @@ class Steps:
         cur = self.cur
         if self.within_noise(cur):
             return True                 # the run stops there: every record within the noise
+        if self.refine_first():
+            return True                 # the next step starts from the refined laws
         if cur is not before:
             cands = self.candidate_models()     # their leads and starts from the refitted model
 
