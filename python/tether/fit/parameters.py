@@ -126,10 +126,11 @@ def check_names(names: Iterable[str], spec: ModelSpec, what: str) -> list[str]:
 
 #: physical ranges a fit keeps to beyond the FMU's own limits: a creep cell of compliance 1e40 1/N
 #: and time constant 1e160 s is a limit of the law, not a tether (fits of long creep records
-#: wander there when two cells trade off)
+#: wander there when two cells trade off); a slip knee below 1e-7 strain is the law's sharp switch,
+#: whose kink at an exhausted capacity stops the integrator (docs/campaign-discovery.md, session 44)
 FIT_RANGES = {"creep_tau1": (1.0, 1e7), "creep_tau2": (1.0, 1e7), "creep_tau3": (1.0, 1e7),
               "creep_J1": (0.0, 1e-3), "creep_J2": (0.0, 1e-3), "creep_J3": (0.0, 1e-3),
-              "slip_regen_tau": (1.0, 1e7)}
+              "slip_regen_tau": (1.0, 1e7), "slip_knee": (1e-7, 1.0)}
 
 
 def bounds_and_start(name: str, start: float, limits: dict, scales: dict) -> tuple[float, float, float, str]:
