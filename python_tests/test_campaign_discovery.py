@@ -1028,7 +1028,8 @@ def test_a_step_near_the_noise_refines_the_named_laws_before_it_fits_a_further_e
     """Where the campaign's error leaves a gap below CRITERIA.unexplained_gap in noise units (1.36 x:
     a gap of 0.92), a step first runs the last stages (the named laws' shapes, the finer bank, ...)
     and fits no candidate; once for each set of named effects, again after another is named, and not
-    where the gap is larger (1.5 x: 1.12) or nothing is named yet."""
+    where the gap is larger (1.5 x: 1.12), nothing is named yet, or the last stages last ran for the
+    same named effects (the steps resumed after them)."""
     from types import SimpleNamespace
 
     from tether.discover.campaign import Campaign
@@ -1053,6 +1054,13 @@ def test_a_step_near_the_noise_refines_the_named_laws_before_it_fits_a_further_e
     for rms, named in ((1.5, ("slack", "hysteresis")), (1.2, ())):
         c = campaign(rms, named)
         assert not c.refine_first() and c.ran == []
+    # the steps resumed after the last stages: not again for the effects they ran for
+    c = campaign(1.2, ("slack", "hysteresis"))
+    del c.last_stages
+    c.budget_hit = True                               # the stages themselves not run here
+    c.refinements = []
+    c.last_stages()
+    assert not c.refine_first()
 
 
 def test_a_named_laws_refinement_is_led_by_the_worst_of_the_records_that_revealed_it():

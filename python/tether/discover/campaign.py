@@ -109,7 +109,7 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         self.rivals: dict = {}            # effect -> {law: the shared law of its candidate's fit}
         self.retested_at = 0              # refinements up to here were followed by the re-tests
         self.shaped_beside: dict = {}     # a shape group -> the effects named when it was last fitted
-        self.refined_for: tuple = ()      # the named effects the last stages ran for before a step (refine_first)
+        self.refined_for: tuple = ()      # the named effects the last stages last ran for (refine_first)
         self.stop = ""
         self.cap: float | None = None
         self.cur_work: dict = {}          # one simulation's work of the current model: own_work_ratio
@@ -493,7 +493,8 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         one-record search's bar for searching again after its shapes), the last stages run before a
         further step, once for each set of named effects: what is left may be a named law's shape or
         a finer bank, and an effect named for it would then stay (tuning campaign 3021,
-        docs/campaign-discovery.md, session 44). True where they ran."""
+        docs/campaign-discovery.md, session 44). Not where they last ran for the same named effects
+        (the steps resumed after them). True where they ran."""
         named = tuple(self.named())
         if not named or named == self.refined_for or _gap(self.cur.rms, 1.0) >= CRITERIA.unexplained_gap:
             return False
@@ -526,6 +527,7 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
                       self.retest_after_refinements):
             if not self.budget_hit:
                 stage()
+        self.refined_for = tuple(self.named())
         return sorted({r.effect for r in self.refinements[first:] if r.accepted})
 
     def per_record(self, m: CampaignFit) -> str:
