@@ -1041,8 +1041,11 @@ def test_a_step_near_the_noise_refines_the_named_laws_before_it_fits_a_further_e
         c.steps = [SimpleNamespace(effect=e) for e in named]
         c.candidate_models = lambda: [("creep", None, 0, [])]
         c.cap_factor_for, c.refit_current, c.within_noise = (lambda m: 1.0), (lambda factor: {}), (lambda m: False)
-        c.ran = []
-        c.last_stages = lambda: c.ran.append(tuple(c.named())) or []
+        c.ran, c.budget_hit, c.refinements = [], False, []
+        # the last stages run (Campaign.last_stages), each stage itself stubbed: the shapes record
+        # the named effects they were run for
+        c.refine_shapes = lambda: c.ran.append(tuple(c.named()))
+        c.rival_law = c.finer_bank = c.wider_laws = c.retest_after_refinements = lambda: None
         return c
 
     c = campaign(1.36, ("slack", "hysteresis"))
@@ -1056,11 +1059,8 @@ def test_a_step_near_the_noise_refines_the_named_laws_before_it_fits_a_further_e
         assert not c.refine_first() and c.ran == []
     # the steps resumed after the last stages: not again for the effects they ran for
     c = campaign(1.2, ("slack", "hysteresis"))
-    del c.last_stages
-    c.budget_hit = True                               # the stages themselves not run here
-    c.refinements = []
     c.last_stages()
-    assert not c.refine_first()
+    assert not c.refine_first() and c.ran == [("slack", "hysteresis")]
 
 
 def test_a_named_laws_refinement_is_led_by_the_worst_of_the_records_that_revealed_it():

@@ -498,7 +498,6 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         named = tuple(self.named())
         if not named or named == self.refined_for or _gap(self.cur.rms, 1.0) >= CRITERIA.unexplained_gap:
             return False
-        self.refined_for = named
         self.say(f"near the noise ({self.cur.rms:.2f} x): the named laws refined before a further step")
         self.last_stages()
         return True
@@ -730,8 +729,7 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
             return
         beside = "the refined laws (" + ", ".join(sorted(changed)) + ")"
         while not self.budget_hit and self.retest(
-                retested_beside_refinements([x for x in self.cur.effects if x not in self.base_effects],
-                                            changed & set(self.cur.effects)),
+                retested_beside_refinements(self.cur.effects, self.base_effects, changed),
                 self.steps[-1], beside):
             pass
         self.retested_at = len(self.refinements)

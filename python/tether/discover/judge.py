@@ -277,15 +277,16 @@ def _shape_shrinks_gap(rms_before: float, rms: float, sigma: float) -> bool:
     return _gap(rms, sigma) <= CRITERIA.shape_gap_shrink * _gap(rms_before, sigma)
 
 
-def retested_beside_refinements(named, changed) -> list:
-    """Of the ``named`` effects, those to test again after the last stages changed the laws of the
-    effects ``changed``: every one but an effect whose own law is the only one that changed (a better
-    law only adds to what it earns), each beside the laws that changed (where a stiffness and
-    a hysteresis law both changed, each is tested beside the other's new law: a cubic named while the
-    hysteresis law was Bouc-Wen's need not earn its place beside a finer Iwan bank). ``changed``
-    holds only the laws still in the model: a law removed by an earlier re-test is nothing to be
-    tested beside."""
-    return [e for e in named if set(changed) - {e}]
+def retested_beside_refinements(effects, base_effects, changed) -> list:
+    """Of the model's ``effects`` the search named (not in ``base_effects``), those to test again
+    after the last stages changed the laws of the effects ``changed``: every one but an effect whose
+    own law is the only one that changed (a better law only adds to what it earns), each beside the
+    laws that changed (where a stiffness and a hysteresis law both changed, each is tested beside
+    the other's new law: a cubic named while the hysteresis law was Bouc-Wen's need not earn its
+    place beside a finer Iwan bank). Only the changed laws still in the model count: a law removed
+    by an earlier re-test is nothing to be tested beside."""
+    still = set(changed) & set(effects)
+    return [e for e in effects if e not in base_effects and still - {e}]
 
 
 def _not_kept_for_budget(records) -> None:

@@ -562,8 +562,7 @@ class Search(RivalBranch):
         changed = self.laws_changed()
         beside = "the refined laws (" + ", ".join(sorted(changed)) + ")"
         while changed and not self.budget_hit and self.retest(
-                retested_beside_refinements([x for x in self.cur.effects if x not in self.base_effects],
-                                            changed & set(self.cur.effects)),
+                retested_beside_refinements(self.cur.effects, self.base_effects, changed),
                 beside, beside):
             pass
 
