@@ -33,9 +33,9 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "python"))
-sys.path.insert(0, str(REPO / "python_tests"))
+import this_tree  # noqa: E402  (bench/, this file's folder, is on sys.path)
+
+REPO = this_tree.use()
 
 #: issue 25's targets: each record, and the median over the records [s]
 TARGET_S, TARGET_MEDIAN_S = 30.0, 10.0

@@ -27,10 +27,9 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "python"))
-sys.path.insert(0, str(REPO / "python_tests"))
-sys.path.insert(0, str(REPO / "bench"))
+import this_tree  # noqa: E402  (bench/, this file's folder, is on sys.path)
+
+REPO = this_tree.use()
 
 #: (name, experiment, hidden effects, model fitted, sampling rate [Hz] or None for the generator's)
 RECORDS = [

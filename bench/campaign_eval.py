@@ -22,10 +22,9 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "python"))
-sys.path.insert(0, str(REPO / "python_tests"))
-sys.path.insert(0, str(REPO / "bench"))
+import this_tree  # noqa: E402  (bench/, this file's folder, is on sys.path)
+
+REPO = this_tree.use()
 
 #: the shared law's parameters compared between the one-at-a-time discoveries
 SHARED = ("EA", "a1", "a2", "a3", "bw_A", "creep_J1", "slip_capacity0")

@@ -14,16 +14,15 @@ F5): the sliding regime that once piled up events. Prints; asserts nothing.
 import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO / "python_tests"))
-sys.path.insert(0, str(REPO / "python"))
+import this_tree  # noqa: E402  (bench/, this file's folder, is on sys.path)
+
+REPO = this_tree.use()
 
 F5_SWITCHES = dict(rig=2, stiffness=1, damping=2, hysteresis=2, slack=True)
 

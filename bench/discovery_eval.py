@@ -44,9 +44,9 @@ import time
 from collections import Counter
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "python"))
-sys.path.insert(0, str(REPO / "python_tests"))
+import this_tree  # noqa: E402  (bench/, this file's folder, is on sys.path)
+
+REPO = this_tree.use()
 
 EFFECTS = ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "creep", "slack")
 SHORT = {"nonlinear_stiffness": "nlstiff", "hysteresis": "hyst", "nonlinear_damping": "nldamp", "creep": "creep",

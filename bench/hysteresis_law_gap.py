@@ -56,13 +56,13 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "python"))
+import this_tree  # noqa: E402  (bench/, this file's folder, is on sys.path)
+
+REPO = this_tree.use()
 
 
 def virgin_tanh(K, Fs, r):

@@ -28,8 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "python"))
+import this_tree  # noqa: E402  (bench/, this file's folder, is on sys.path)
+
+REPO = this_tree.use()
 
 L0 = 16.0
 
