@@ -38,7 +38,8 @@ def _copy_of_the_tree(root: Path) -> Path:
 
 def _use(copy: Path, redirected: bool) -> subprocess.CompletedProcess:
     prelude = OWN_ENVIRONMENT + (ELSEWHERE.format(elsewhere=str(REPO / "python")) if redirected else "")
-    code = prelude + f"import sys; sys.path.insert(0, {str(copy / 'bench')!r}); import this_tree; print(this_tree.use())"
+    code = (prelude + f"import sys; sys.path.insert(0, {str(copy / 'bench')!r}); "
+            "import this_tree; print(this_tree.use())")
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
 
 

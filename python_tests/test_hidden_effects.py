@@ -455,8 +455,6 @@ def test_slack_matches_solve_ivp_with_events():
 # ---------------------------------------------------------------------------------------------
 # the nuisance family (issue 30): hidden effective mass, offset, forced records in motion
 # ---------------------------------------------------------------------------------------------
-#: sha256 (first 16 hex) of csv + json of default draws, taken with the code before the nuisance
-#: option existed (f2b544b^) once its forced force scale was rounded as ``_blas_free`` does
 # The default draws as the generator made them before the nuisance option (f2b544b^), as
 # fingerprints: per column the sums of its values, of their absolute values and of their squares, and
 # seven samples; the JSON as read. They are compared to 1e-8, not bit for bit: a forced draw's multisine
