@@ -171,6 +171,15 @@ def _free(truth, factors):
     return out
 
 
+def _cache_off(run):
+    """run() with the engine's simulation cache off (every simulation made), then on again."""
+    bound = idn.simulation_cache_bytes(0)
+    try:
+        return run()
+    finally:
+        idn.simulation_cache_bytes(bound)
+
+
 def test_fit_recovers_known_parameters_within_their_intervals():
     e = _synthetic(dict(SIMPLE, x0=-0.1669), TRUTH_SIMPLE, 8001, 2e-4, seed=100)
     free = _free(TRUTH_SIMPLE, {"a1": 1.1, "a2": 0.9, "a3": 0.85, "c0": 1.3, "c1": 0.8})
@@ -396,7 +405,7 @@ def test_a_thread_cpu_deadline_counts_only_the_fit_on_its_thread():
     e = _synthetic(dict(FULL, x0=-0.1184), TRUTH_FULL, 20001, 1e-3, seed=8)
     free = _free(TRUTH_FULL, {"a1": 1.05, "bw_A": 0.9})
     c0 = time.thread_time()
-    idn.simulate(e, {n: v[2] for n, v in free.items()})
+    _cache_off(lambda: idn.simulate(e, {n: v[2] for n, v in free.items()}))   # made, not read back
     one = time.thread_time() - c0
     limit = 3 * one
 
@@ -473,6 +482,93 @@ def test_a_work_cap_stops_the_same_fit_at_the_same_iteration_however_busy_the_ma
         for b in burners:
             b.join()
     assert busy == quiet
+
+
+# ---- the simulation cache: a simulation asked for again is read back, the same bits -------------
+def _cache_record(seed: int):
+    e = _synthetic(dict(SIMPLE, x0=-0.1669), TRUTH_SIMPLE, 2001, 2e-4, seed=seed)
+    return e, _free(TRUTH_SIMPLE, {"a1": 1.1, "c0": 1.3})
+
+
+def test_a_fit_along_a_path_already_walked_reads_its_simulations_back_and_ends_at_the_same_bits():
+    """A quick fit, then the full fit from the same start (discovery's fits from several starts):
+    the full fit walks the quick one's path again and reads those simulations back, and it ends at
+    the bits of the same fit made with every simulation simulated (the cache off); a fit asked for
+    again makes no simulation at all."""
+    e, free = _cache_record(seed=12)
+    made_cold = _cache_off(lambda: idn.fit([e], free, n_threads=2))
+    quick = idn.fit([e], free, n_threads=2, max_iterations=3)
+    reused1, made1 = idn.simulation_cache_counts()
+    full = idn.fit([e], free, n_threads=2)
+    reused2, made2 = idn.simulation_cache_counts()
+    assert quick.status == 1 and full.status == 0
+    assert np.array_equal(full.values, made_cold.values), (full.values, made_cold.values)
+    assert full.cost == made_cold.cost
+    assert (full.evaluations, full.iterations, full.rhs_evaluations) == \
+        (made_cold.evaluations, made_cold.iterations, made_cold.rhs_evaluations)
+    assert np.array_equal(full.ci_low, made_cold.ci_low) and np.array_equal(full.ci_high, made_cold.ci_high)
+    # every simulation of the full fit was made or read back; the Jacobian columns of the quick
+    # fit's three iterations (one per free parameter each) among those read back
+    assert (reused2 - reused1) + (made2 - made1) == full.evaluations
+    assert reused2 - reused1 >= 3 * len(free), (reused2 - reused1, quick.evaluations)
+    again = idn.fit([e], free, n_threads=2)
+    reused3, made3 = idn.simulation_cache_counts()
+    assert made3 == made2 and reused3 - reused2 == again.evaluations
+    assert np.array_equal(again.values, made_cold.values)
+
+
+def test_a_work_cap_stops_a_fit_read_back_where_it_stops_the_fit_simulated():
+    """A simulation read back books the work it made as its own: a fit capped at half its work
+    stops after the same iterations, at the same costs, whether its simulations are made or read
+    back (the uncapped fit ran before it, so all of them are kept)."""
+    e, free = _cache_record(seed=13)
+    whole = _cache_off(lambda: idn.fit([e], free, n_threads=1))
+
+    def capped() -> list:
+        calls = []
+        with pytest.raises(idn.DeadlinePassed, match="work cap passed"):
+            idn.fit([e], free, n_threads=1, progress=lambda *a: calls.append(a),
+                    max_rhs_evaluations=whole.rhs_evaluations // 2)
+        return calls
+
+    simulated = _cache_off(capped)
+    idn.fit([e], free, n_threads=1)          # every simulation of the fit's path kept
+    reused0, made0 = idn.simulation_cache_counts()
+    read_back = capped()
+    reused1, made1 = idn.simulation_cache_counts()
+    assert 0 < len(simulated) < whole.iterations
+    assert read_back == simulated
+    assert reused1 - reused0 >= len(read_back), (reused1 - reused0, made1 - made0)
+
+
+def test_the_cache_never_reads_back_another_record_s_simulation():
+    """Records that differ in one sample of their grid, in their input or in one setting, and
+    parameters that differ in their last bit, are simulated each on their own: each read back
+    equals the same simulation made with the cache off."""
+    t = np.arange(1001) * 1e-3
+    base = idn.Experiment(t, settings=dict(SIMPLE, x0=-0.1669))
+    moved = t.copy()
+    moved[500] += 1e-6
+    forced_settings = dict(SIMPLE, x0=0.0)
+    u = np.sin(2 * np.pi * 3 * t)
+    records = [base, idn.Experiment(moved, settings=dict(SIMPLE, x0=-0.1669)),
+               idn.Experiment(t, settings=dict(SIMPLE, x0=-0.1668)),
+               idn.Experiment(t, settings=forced_settings, input_kind=idn.INPUT_FORCE, input=u),
+               idn.Experiment(t, settings=forced_settings, input_kind=idn.INPUT_FORCE, input=1.001 * u)]
+    a1 = TRUTH_SIMPLE["a1"]
+    params = [dict(TRUTH_SIMPLE), dict(TRUTH_SIMPLE, a1=np.nextafter(a1, 2 * a1))]
+    runs = [(e, p) for e in records for p in params]
+    made = _cache_off(lambda: [idn.simulate(e, p) for e, p in runs])
+    for e, p in runs:
+        idn.simulate(e, p)                      # kept
+    reused0, _ = idn.simulation_cache_counts()
+    read = [idn.simulate(e, p) for e, p in runs]
+    reused1, _ = idn.simulation_cache_counts()
+    assert reused1 - reused0 == len(runs)
+    for i, (x, y) in enumerate(zip(read, made)):
+        assert np.array_equal(x, y), runs[i]
+    outs = [tuple(x) for x in made]
+    assert len(set(outs)) == len(outs)          # the records and parameters all simulate apart
 
 
 # ---- Broyden updates between finite-difference Jacobians; the fit's own counts -------------------

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -74,6 +75,14 @@ struct InputJoin {
     double value_scale = 0, rate_scale = 0; // max |input|, max |input_der[., 0]| of the record
 };
 
+// Two 64-bit hashes of data (FNV-1a over 8-byte words, and a multiply-xorshift mix): together they
+// name an experiment's data beyond any chance of two records sharing them (simulation_cache.cpp)
+struct ContentHash {
+    std::uint64_t a = 1469598103934665603ULL, b = 0x9E3779B97F4A7C15ULL;
+    void add(const void *data, std::size_t bytes);
+    template <class T> void add_value(const T &v) { add(&v, sizeof v); }
+};
+
 // An experiment ready to run: the model with the experiment's settings, the output offsets.
 struct Prepared {
     const kt_experiment *e = nullptr;
@@ -92,12 +101,25 @@ struct Prepared {
     // read off its interpolant. Not with the Kawabata and Iwan laws (simulate.cpp says why)
     bool continuous_input = false;
     InputJoin join;
+    // what a simulation reads of the experiment (its grid, input, periodic settings, outputs), hashed
+    // by prepare: with the setup and the speed-ups above, the key of the simulation cache
+    ContentHash content;
 };
 bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prepared &p, std::string &err);
 
 // Run the experiment on the setup S (parameters set); out is n x outputs.size() row-major, the
-// measured column with offset_measured added.
+// measured column with offset_measured added. A simulation made before in this process with the same
+// experiment data, setup and speed-ups is read back (the same bits; simulation_cache.cpp), its work
+// booked to p.limits as the simulation's own; simulate_physics always simulates.
 bool simulate(const Prepared &p, const Setup &S, double *out, std::string &err);
+bool simulate_physics(const Prepared &p, const Setup &S, double *out, std::string &err);
+
+// The simulation cache: at most this many bytes, the least recently used dropped first
+constexpr long long SIMULATION_CACHE_DEFAULT_BYTES = 256LL << 20;
+// its bound in bytes (0: off, emptied); returns the bound before
+long long set_simulation_cache_bytes(long long bytes);
+// the simulations read back from it, and those made, since the process started
+void simulation_cache_counts(long long &reused, long long &made);
 
 // What simulate adds to its outputs out (n x outputs.size()) for offset_measured: the offset to the
 // measured column (the outputs of a simulation with offset_measured 0 become those with `offset`).

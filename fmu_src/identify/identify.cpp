@@ -37,6 +37,16 @@ const char *kt_last_error(void) { return kt::last_error.c_str(); }
 
 long long kt_last_simulation_work(void) { return kt::last_simulation_work; }
 
+long long kt_simulation_cache_bytes(long long bytes) { return kt::set_simulation_cache_bytes(bytes); }
+
+void kt_simulation_cache_counts(long long *reused, long long *made)
+{
+    long long r = 0, m = 0;
+    kt::simulation_cache_counts(r, m);
+    if (reused) *reused = r;
+    if (made) *made = m;
+}
+
 int kt_simulate_outputs(const kt_experiment *e, int n_par, const char *const *names, const double *values, int n_out,
                         const char *const *outputs, double *out)
 {

@@ -27,7 +27,7 @@ extern "C" {
 #define KT_API
 #endif
 
-#define KT_IDENTIFY_API_VERSION 9
+#define KT_IDENTIFY_API_VERSION 10
 
 /* ---- parameter table ------------------------------------------------------------------------ */
 #define KT_PAR_REAL 0   /* a Real parameter: a double field of tether_params */
@@ -102,6 +102,15 @@ KT_API const char *kt_last_error(void);
 /* The evaluations of the model's equations that the last kt_simulate or kt_simulate_outputs on this
  * thread made (its work, the unit of kt_fit_options.max_rhs_evaluations). */
 KT_API long long kt_last_simulation_work(void);
+
+/* The simulations made in this process are kept, at most this many bytes of them (the least
+ * recently used dropped first; 256 MiB to begin with), and a simulation asked for again (the same
+ * experiment data, parameters and speed-ups) is read back: the same bits, its work booked as its own
+ * (kt_last_simulation_work, a fit's max_rhs_evaluations). 0 switches this off and empties it.
+ * Returns the bound before. */
+KT_API long long kt_simulation_cache_bytes(long long bytes);
+/* the simulations read back and those made since the process started */
+KT_API void kt_simulation_cache_counts(long long *reused, long long *made);
 
 /* z of the Bouc-Wen law (n = 1) along the displacement path x[0..n-1] (physics/laws.h,
  * boucwen_path): the hysteretic force an equation-error estimate of (A, beta, gamma) needs.

@@ -86,6 +86,8 @@ static tether_model start_model()
 Setup start_setup()
 {
     Setup S;
+    // the padding too: the simulation cache compares setups by their bytes
+    std::memset(static_cast<void *>(&S), 0, sizeof S);
     S.M = start_model();
     S.meas = Measurement();
     return S;
@@ -150,6 +152,26 @@ bool output_offset(const char *name, std::size_t &offset)
     return false;
 }
 
+// what a simulation of e reads beside the setup, hashed (Prepared::content)
+static ContentHash content_of(const kt_experiment &e, const Prepared &p)
+{
+    ContentHash h;
+    h.add_value(e.n);
+    h.add(e.time, sizeof(double) * (std::size_t)e.n);
+    h.add_value(e.input_kind);
+    if (e.input) h.add(e.input, sizeof(double) * (std::size_t)e.n);
+    h.add_value(e.input_der != nullptr);
+    if (e.input_der) h.add(e.input_der, 3 * sizeof(double) * (std::size_t)e.n);
+    h.add_value(e.periodic_samples);
+    h.add_value(e.periodic_tol);
+    h.add_value(e.periodic_max_periods);
+    h.add(p.outputs.data(), sizeof(std::size_t) * p.outputs.size());
+    h.add_value(p.measured_output);
+    h.add_value(p.join.value_scale);
+    h.add_value(p.join.rate_scale);
+    return h;
+}
+
 bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prepared &p, std::string &err)
 {
     p.e = &e;
@@ -196,6 +218,7 @@ bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prep
             p.outputs.push_back(off);
         }
     }
+    p.content = content_of(e, p);
     return true;
 }
 
@@ -584,7 +607,7 @@ void add_measured_offset(const Prepared &p, double offset, double *out)
     }
 }
 
-bool simulate(const Prepared &p, const Setup &S, double *out, std::string &err)
+bool simulate_physics(const Prepared &p, const Setup &S, double *out, std::string &err)
 {
     if (!simulate_model(p, S.M, S.meas, out, err)) return false;
     add_measured_offset(p, S.meas.offset_measured, out);

@@ -28,7 +28,7 @@ __all__ = ["Experiment", "FitResult", "MEASUREMENT_DEFAULTS", "PROGRESS", "exper
 
 INPUT_NONE, INPUT_FORCE, INPUT_LOAD = 0, 1, 2
 #: the engine's KT_IDENTIFY_API_VERSION this binding is written for
-API_VERSION = 9
+API_VERSION = 10
 #: parameter kinds of the engine's table (identify.h KT_PAR_*)
 KIND_REAL, KIND_SWITCH, KIND_INPUT, KIND_MEASUREMENT = 0, 1, 2, 3
 #: the measurement parameters of an experiment (identify.h KT_PAR_MEASUREMENT) and their defaults:
@@ -125,6 +125,9 @@ def library() -> C.CDLL:
     lib.kt_fit.argtypes = [C.POINTER(_Experiment), C.c_int, C.c_int, C.POINTER(C.c_char_p), _DP, _DP, _DP, _IP,
                            C.POINTER(_Options), C.POINTER(_Result)]
     lib.kt_bouc_wen_path.argtypes = [C.c_double, C.c_double, C.c_double, _DP, C.c_int, C.c_int, _DP]
+    lib.kt_simulation_cache_bytes.restype = C.c_longlong
+    lib.kt_simulation_cache_bytes.argtypes = [C.c_longlong]
+    lib.kt_simulation_cache_counts.argtypes = [C.POINTER(C.c_longlong), C.POINTER(C.c_longlong)]
     if lib.kt_api_version() != API_VERSION:
         raise RuntimeError(f"{path}: API version {lib.kt_api_version()}, this binding expects {API_VERSION} "
                            "(rebuild it with `cmake --build build`)")
@@ -312,6 +315,21 @@ def simulation_work() -> int:
     so far: the unit of the fit option ``max_rhs_evaluations``, a cap on a fit's work that, unlike a
     CPU-time deadline, stops the same fit at the same point however busy the machine is."""
     return getattr(_work, "done", 0)
+
+
+def simulation_cache_bytes(bytes_: int) -> int:
+    """Bound the engine's simulation cache to ``bytes_`` (0: off, and emptied); returns the bound
+    before. The engine keeps the simulations it made (256 MiB of them to begin with) and reads one
+    back where a fit or :func:`simulate` asks for it again: the same bits, its work counted as
+    its own."""
+    return int(library().kt_simulation_cache_bytes(int(bytes_)))
+
+
+def simulation_cache_counts() -> tuple[int, int]:
+    """(read back, made): the engine's simulations since the process started."""
+    reused, made = C.c_longlong(0), C.c_longlong(0)
+    library().kt_simulation_cache_counts(C.byref(reused), C.byref(made))
+    return reused.value, made.value
 
 
 @dataclass
