@@ -3,9 +3,11 @@
 // measurement) and the speed-ups of its Prepared, so a simulation read back is the same bits as one
 // made again. Fits ask for the same simulation again where they walk a path another fit walked: the
 // full run from the start a quick fit took, a model refitted from where it stands.
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <cstring>
+#include <iterator>
 #include <list>
 #include <mutex>
 #include <type_traits>
