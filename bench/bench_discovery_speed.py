@@ -11,13 +11,14 @@ and a machine yardstick measured just before it (one simulation of the demo reco
 then a table with each wall time scaled to a quiet machine (wall x quiet yardstick / yardstick of
 the record) against the 30 s target, and the medians against the 10 s target.
 
-    python bench/bench_discovery_speed.py [--out DIR] [--only SUBSTRING] [--names A,B] [--baseline TETHER]
+    python bench/bench_discovery_speed.py [--out DIR] [--only SUBSTRING] [--names A,B] [--baseline TETHER|cache-off]
 
 --baseline TETHER: also run another `tether` executable (an older checkout's command line) on each
 record, in alternating order, and print both times (wall, and CPU of all threads, which a loaded
 machine moves less) and whether the results agree: the same added_effects and rmse_final equal to
 1e-6 relative (the check of a change meant to leave the results as they were); the medians and
-largest times of both then stand beside one yardstick. --tether TETHER: the executable to time
+largest times of both then stand beside one yardstick. --baseline cache-off: the baseline is this
+checkout's command line with the engine's simulation cache off (docs/speed.md, 2026-11-29). --tether TETHER: the executable to time
 (default: the one beside this Python). docs/speed.md has the figures.
 """
 from __future__ import annotations
@@ -70,7 +71,8 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default=None, help="run only the records whose name contains this")
     ap.add_argument("--names", default=None, help="run only these records, in this order (exact names, comma-separated)")
     ap.add_argument("--baseline", default=None, metavar="TETHER",
-                    help="another tether executable to run on each record and compare with")
+                    help="another tether executable to run on each record and compare with; 'cache-off': this "
+                         "checkout's with the engine's simulation cache off")
     ap.add_argument("--tether", default=str(Path(sys.executable).with_name("tether")), metavar="TETHER",
                     help="the tether executable to time (default: the one beside this Python)")
     ap.add_argument("--quiet-yardstick-ms", type=float, default=1e3 * QUIET_YARDSTICK_S,
@@ -86,7 +88,8 @@ def main(argv=None) -> int:
           f"load average {os.getloadavg()[0]:.2f} at the start\n")
     tether = a.tether
     if a.baseline:
-        return _compare(records, out, tether, a.baseline, yard)
+        baseline = _cache_off_launcher(out) if a.baseline == CACHE_OFF else a.baseline
+        return _compare(records, out, tether, baseline, yard)
     rows = []
     for name, stem, hidden in records:
         y = _yardstick()
@@ -103,6 +106,21 @@ def main(argv=None) -> int:
     _table(rows, 1e-3 * a.quiet_yardstick_ms)
     print(f"\n{len(rows)} runs: {_summary([r[2] for r in rows], yard)}; load average {os.getloadavg()[0]:.2f} at the end")
     return 0
+
+
+#: --baseline's name for this checkout's tether with the engine's simulation cache off
+CACHE_OFF = "cache-off"
+
+
+def _cache_off_launcher(out: Path) -> str:
+    """An executable in ``out`` that runs this checkout's command line with the engine's
+    simulation cache off (identify_native.simulation_cache_bytes(0))."""
+    path = out / "tether_cache_off"
+    path.write_text(f"#!{sys.executable}\nimport sys\nsys.path.insert(0, {str(REPO / 'python')!r})\n"
+                    "from tether import identify_native\nidentify_native.simulation_cache_bytes(0)\n"
+                    "from tether.cli import main\nsys.exit(main())\n")
+    path.chmod(0o755)
+    return str(path)
 
 
 def _table(rows: list, quiet: float) -> None:
