@@ -18,8 +18,9 @@ record, in alternating order, and print both times (wall, and CPU of all threads
 machine moves less) and whether the results agree: the same added_effects and rmse_final equal to
 1e-6 relative (the check of a change meant to leave the results as they were); the medians and
 largest times of both then stand beside one yardstick. --baseline cache-off: the baseline is this
-checkout's command line with the engine's simulation cache off (docs/speed.md, 2026-11-29). --tether TETHER: the executable to time
-(default: the one beside this Python). docs/speed.md has the figures.
+checkout's command line with the engine's simulation cache off (docs/speed.md, 2026-11-29).
+--tether TETHER: the executable to time (default: the one beside this Python). docs/speed.md has
+the figures.
 """
 from __future__ import annotations
 

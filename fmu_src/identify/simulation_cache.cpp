@@ -130,8 +130,6 @@ void ContentHash::add(const void *data, std::size_t bytes)
     }
 }
 
-bool simulate_physics(const Prepared &p, const Setup &S, double *out, std::string &err); // simulate.cpp
-
 bool simulate(const Prepared &p, const Setup &S, double *out, std::string &err)
 {
     const std::size_t n = (std::size_t)p.e->n * p.outputs.size();
