@@ -11,7 +11,9 @@ Checked through kt_fit with no iteration, whose RMS is that of the start's resid
 3. a periodic record (its period's end joins its start) agrees with the exact sequence to the
    tolerance;
 4. a law with reversal memory (Kawabata) keeps the FMU's step sequence: a load back at an earlier
-   turning load rejoins or reverses by a hair, as the FMU's switches at the samples decide.
+   turning load rejoins or reverses by a hair, as the FMU's switches at the samples decide;
+5. a creep test's loads, held for hours and changed between two samples (PCHIP ramps whose
+   curvature jumps where they meet the holds): every change is seen.
 """
 from __future__ import annotations
 
@@ -111,3 +113,27 @@ def test_a_kawabata_load_test_back_at_an_earlier_turning_load_keeps_the_fmus_swi
     e.measured = idn.simulate(e)
     assert np.ptp(e.measured) > 1e-2
     assert start_rms(e, 1) == 0.0
+
+
+def test_a_load_held_for_hours_and_stepped_within_a_sample_is_seen_at_every_step():
+    # a creep test's program: loads held for hours, sampled every 5 s, changed between two samples;
+    # PCHIP makes each change a ramp piece whose value and rate join the holds on both sides, but
+    # whose curvature jumps there. An integrator carried on through the holds takes steps of hours
+    # and can step over a whole ramp (the load rig's strain follows the load's rate): the fit
+    # restarts where the curvature jumps, so every elongation is the held load's, L0 F / EA
+    from scipy.interpolate import PchipInterpolator
+
+    dt, hours = 5.0, [6.1, 2.0, 6.3, 7.6, 5.1, 5.4]
+    holds = [100.0, 5.0, 100.0, 5.0, 91.7, 5.0]
+    ends = np.cumsum(hours) * 3600.0
+    t = np.arange(0.0, ends[-1], dt)
+    load = np.array([holds[int(np.searchsorted(ends, s, side="right"))] for s in t])
+    load[0] = 0.0                                                 # hung at the first sample
+    pchip = PchipInterpolator(t, load)
+    der = np.column_stack([pchip(t, 1), pchip(t, 2), pchip(t, 3)])
+    e = idn.Experiment(t, settings={"rig": 3, "stiffness": 1, "hysteresis": 1, "L0": L0, "EA": EA},
+                       input_kind=idn.INPUT_LOAD, input=load, input_der=der, output="elongation")
+    e.measured = idn.simulate(e)
+    held = L0 * load / EA
+    assert np.max(np.abs(e.measured - held)) <= 1e-9 * np.max(held)
+    assert start_rms(e, 1) <= 1e-9 * np.max(held)

@@ -69,10 +69,14 @@ extern thread_local long long last_simulation_work;
 
 // Where a record's input pieces join: at a sample, the new piece carries on the last one if it
 // starts where that one arrived, to `tolerance` of the record's largest |input| (of its largest
-// |input rate|, for the load, whose rate the load rig's equations see as well).
+// |input rate|, for the load, whose rate the load rig's equations see as well), and with the
+// curvature it arrived with (to `tolerance` of the largest |input curvature|): where the curvature
+// jumps (a PCHIP load's hold meeting a ramp) an integrator that carried on could step over the
+// whole next piece and never see it (a creep record's load steps, 2026-12-01).
 struct InputJoin {
     static constexpr double tolerance = 1e-9;
-    double value_scale = 0, rate_scale = 0; // max |input|, max |input_der[., 0]| of the record
+    // max |input|, max |input_der[., 0]|, max |input_der[., 1]| of the record
+    double value_scale = 0, rate_scale = 0, curvature_scale = 0;
 };
 
 // Two 64-bit hashes of data (FNV-1a over 8-byte words, and a multiply-xorshift mix): together they

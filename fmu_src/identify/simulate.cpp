@@ -169,6 +169,7 @@ static ContentHash content_of(const kt_experiment &e, const Prepared &p)
     h.add_value(p.measured_output);
     h.add_value(p.join.value_scale);
     h.add_value(p.join.rate_scale);
+    h.add_value(p.join.curvature_scale);
     return h;
 }
 
@@ -202,7 +203,9 @@ bool prepare(const kt_experiment &e, int n_out, const char *const *outputs, Prep
     if (e.input_kind != KT_INPUT_NONE)
         for (int k = 0; k < e.n; ++k) {
             p.join.value_scale = std::max(p.join.value_scale, std::fabs(e.input[k]));
-            if (e.input_der) p.join.rate_scale = std::max(p.join.rate_scale, std::fabs(e.input_der[3 * k]));
+            if (!e.input_der) continue;
+            p.join.rate_scale = std::max(p.join.rate_scale, std::fabs(e.input_der[3 * k]));
+            p.join.curvature_scale = std::max(p.join.curvature_scale, std::fabs(e.input_der[3 * k + 1]));
         }
     p.outputs.clear();
     std::size_t measured_off;
@@ -266,7 +269,8 @@ bool set_input(tether_model &M, const Measurement &meas, const kt_experiment &e,
 
 // Does input piece k (from t on) carry on piece k_prev (from t_prev on) where it starts: what the
 // model's equations see of the input (the force's value; the load's value and rate, which the load
-// rig's equations see) the same to InputJoin::tolerance? Then the integrator need not restart there.
+// rig's equations see), and its curvature, the same to InputJoin::tolerance? Then the integrator
+// need not restart there.
 bool pieces_join(const kt_experiment &e, const Measurement &meas, const InputJoin &join, int k_prev, double t_prev,
                  int k, double t)
 {
@@ -276,6 +280,9 @@ bool pieces_join(const kt_experiment &e, const Measurement &meas, const InputJoi
     const double reached = g * e.input[k_prev] + meas.offset_input + h * (d1 + h * (d2 / 2.0 + h * d3 / 6.0));
     const double value_tol = InputJoin::tolerance * (std::fabs(g) * join.value_scale + std::fabs(meas.offset_input));
     if (!(std::fabs(g * e.input[k] + meas.offset_input - reached) <= value_tol)) return false;
+    const double curvature = d2 + h * d3, curvature_new = e.input_der ? g * e.input_der[3 * k + 1] : 0.0;
+    if (!(std::fabs(curvature_new - curvature) <= InputJoin::tolerance * std::fabs(g) * join.curvature_scale))
+        return false;
     if (e.input_kind != KT_INPUT_LOAD) return true;
     const double rate = d1 + h * (d2 + h * d3 / 2.0), rate_new = e.input_der ? g * e.input_der[3 * k] : 0.0;
     return std::fabs(rate_new - rate) <= InputJoin::tolerance * std::fabs(g) * join.rate_scale;
