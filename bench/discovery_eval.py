@@ -15,6 +15,7 @@ damping, Findley/log creep with Norton-Bailey slip), runs one discovery per trac
 
     python bench/discovery_eval.py [--n 48] [--seed 0] [--jobs 2] [--out DIR] [--boucwen] [--family fmu|nuisance]
     python bench/discovery_eval.py --traces DIR [--jobs 2] [--out DIR2]
+    (either form) [--budget S] [--no-nuisance] [--engine OPTION=VALUE ...]
 
 --traces DIR runs every trace of a folder drawn by another generator (bench/generator_b:
 `python -m bench.generator_b --n 48 --seed S --out DIR`); the truth is read from each JSON's
@@ -55,6 +56,16 @@ SHORT = {"nonlinear_stiffness": "nlstiff", "hysteresis": "hyst", "nonlinear_damp
 
 #: options of every discovery this evaluation runs (--budget, --no-nuisance)
 DISCOVER_OPTIONS: dict = {}
+#: engine options over discovery's own for every fit (--engine, e.g. broyden_updates=0)
+ENGINE_OVERRIDES: dict = {}
+
+
+def _one_fit_at_a_time(D) -> None:
+    """Each discovery's fits on one thread, one at a time (two traces run side by side already),
+    with the --engine options over discovery's own."""
+    D.fitting.ENGINE_OPTIONS["n_threads"] = 1
+    D.fitting.ENGINE_OPTIONS.update(ENGINE_OVERRIDES)
+    D.fitting.PARALLEL_FITS = 1
 
 
 def _one(job):
@@ -69,8 +80,7 @@ def _one(job):
     from tether import discover as D
     from tether.traces import read_trace
 
-    D.fitting.ENGINE_OPTIONS["n_threads"] = 1
-    D.fitting.PARALLEL_FITS = 1      # two traces run side by side already
+    _one_fit_at_a_time(D)
     kw = dict(kw)
     family = kw.pop("_family", "independent")
     tr = he.generate(kw.pop("experiment"), kw.pop("effects"), kw.pop("seed"), **kw)
@@ -111,15 +121,14 @@ def _one_file(name, stem: Path, dest: Path) -> dict:
     from tether import discover as D
     from tether.traces import read_trace
 
-    D.fitting.ENGINE_OPTIONS["n_threads"] = 1
-    D.fitting.PARALLEL_FITS = 1
+    _one_fit_at_a_time(D)
     hidden = json.loads(stem.with_suffix(".json").read_text())["hidden"]
     trace = read_trace(stem)
     base = {"name": name, "experiment": trace.experiment, "hidden": sorted(hidden["effects"]),
             "noise_true": float(hidden["noise_sigma"]), "samples": len(trace.time)}
     t0 = time.perf_counter()
     try:
-        doc = D.discovery_document(D.discover(trace))
+        doc = D.discovery_document(D.discover(trace, **DISCOVER_OPTIONS))
         _write_json(dest.with_name(f"{name}.discovery.json"), doc)
         row = {**base, "named": doc["added_effects"], "final_model": doc["final_model"],
                "rmse_initial": doc["rmse_initial"], "rmse_final": doc["rmse_final"],
@@ -219,12 +228,16 @@ def main(argv=None) -> int:
                     help="run the traces of a folder drawn by another generator (truth in each JSON's 'hidden')")
     ap.add_argument("--budget", type=float, default=None, help="each discovery's time budget [s] (default: its own)")
     ap.add_argument("--no-nuisance", action="store_true", help="discovery without its nuisance parameters")
+    ap.add_argument("--engine", action="append", default=[], metavar="OPTION=VALUE",
+                    help="an engine option over discovery's own for every fit (a JSON value), e.g. "
+                         "broyden_updates=0 for the fits before the secant updates (docs/speed.md)")
     a = ap.parse_args(argv)
     import hidden_effects as he
 
     if a.budget is not None:
         DISCOVER_OPTIONS["budget"] = a.budget
     DISCOVER_OPTIONS["free_nuisance"] = not a.no_nuisance
+    ENGINE_OVERRIDES.update({k: json.loads(v) for k, v in (e.split("=", 1) for e in a.engine)})
 
     outdir = Path(a.out or (f"/tmp/discovery_eval_{Path(a.traces).name}" if a.traces
                             else f"/tmp/discovery_eval_{'nuisance_' if a.family == 'nuisance' else ''}{a.n}_{a.seed}"))
