@@ -113,7 +113,8 @@ def test_unknown_value_reference(function):
 @pytest.mark.parametrize("name, value, needle", [("rtol", 1.0, "rtol = 1"), ("L0", -1.0, "L0 = -1"),
                                                  ("rig", 7, "rig = 7"), ("rtol", 1e-15, f"rtol = {1e-15:.17g}"),
                                                  ("c_drag", -0.5, "c_drag = -0.5"), ("pow_n", 0.5, "pow_n = 0.5"),
-                                                 ("pow_F", -2.0, "pow_F = -2")])
+                                                 ("pow_F", -2.0, "pow_F = -2"), ("c_coulomb", -0.5, "c_coulomb = -0.5"),
+                                                 ("coulomb_v", -1e-3, "coulomb_v = -0.001")])
 def test_value_out_of_range(name, value, needle):
     inst = fresh()
     single_error(inst, inst.set(name, value), "fmi2Set", needle)
@@ -122,6 +123,7 @@ def test_value_out_of_range(name, value, needle):
 
 @pytest.mark.parametrize("values, needle", [
     (dict(rig=2, m=0.0), "m = 0"),
+    (dict(rig=2, damping=2, coulomb_v=0.0), "coulomb_v = 0 m/s"),  # inside the variable's min, but no scale
     (dict(rig=3, stiffness=2, load=500.0), "load = 500"),  # more than the cubic carries, load rig
     (dict(rig=2, stiffness=2, m=50.0), "m = 50"),  # 490 N > the 378 N the default cubic carries
     # a1 tiny against a2, a3 (a fit's iterate): the law turns down at a strain of 3e-162, so it

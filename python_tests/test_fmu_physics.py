@@ -181,6 +181,42 @@ def test_velocity_quadratic_drag_decays_as_the_averaged_law_and_a_second_integra
     assert np.max(np.abs(np.diff(1.0 / peaks) - expected)) < 0.05 * expected
 
 
+def test_coulomb_friction_drops_each_peak_by_twice_the_friction_over_the_stiffness_and_stops_inside_it():
+    """Free vibration with dry friction only (c0 = 0, c_coulomb tanh(v / coulomb_v), the sign
+    sharp): the closed form of m x'' + F_c sgn(x') + k x = 0 released from rest at x0. Each half
+    cycle is a harmonic arc about +-F_c/k, so successive extrema fall by 2 F_c/k in size (4 F_c/k
+    per cycle: linearly, not geometrically as under viscous damping), and the motion stops at the
+    first extremum inside |x| <= F_c/k, where the spring cannot overcome the friction.
+    Tolerance: the peaks are read from samples dt = 5e-4 s apart, within a dt^2/2 <= 7e-7 m of the
+    true extremum (a <= (k x0 + F_c)/m); the tanh's smoothing loses (pi^2/12) coulomb_v^2/a of
+    friction travel per reversal, 2e-12 m here; 1e-6 m (5e-5 of a drop) covers both with room for
+    the integration (rtol 1e-10; measured 1.1e-8 m). After the stop the tanh's steep slope (a damping F_c/coulomb_v)
+    lets the payload creep towards the balance, never beyond F_c/k, a thousand times slower than it swung."""
+    F_c, v_s, x0, dt = 2.0, 1e-4, 0.1, 5e-4
+    inst = H.cs(LINEAR | dict(slack=False, damping=2, c0=0.0, c1=0.0, c2=0.0, c_coulomb=F_c, coulomb_v=v_s,
+                              x0=x0, v0=0.0, rtol=1e-10))
+    r = H.run_cs(inst, H.grid(4.0, dt), ["displacement", "velocity"])
+    inst.free()
+    x, v = r["displacement"], r["velocity"]
+    band = F_c / K
+    # reversals: the velocity changes sign at a speed well above the smoothing (the creep after the
+    # stop, at coulomb_v artanh(k |x| / F_c) = 1.7e-4 m/s here, is not a reversal)
+    k = np.arange(5, len(v) - 6)
+    s = k[(v[k] * v[k + 1] < 0.0) & (np.maximum(np.abs(v[k - 5]), np.abs(v[k + 6])) > 10 * v_s)]
+    peaks = np.array([x[k] if abs(x[k]) > abs(x[k + 1]) else x[k + 1] for k in s])
+    n_stop = int(np.ceil((x0 / band - 1.0) / 2.0))      # half cycles until an extremum falls inside the band
+    n = np.arange(1, n_stop + 1)
+    expected = (-1.0) ** n * (x0 - 2.0 * n * band)
+    after = np.abs(x[s[-1] + 2:]) if len(s) else np.abs(x)
+    print(f"FIGURE 1f Coulomb F_c={F_c} N, coulomb_v={v_s} m/s: peaks {np.round(peaks, 6).tolist()} m, closed form "
+          f"{np.round(expected, 6).tolist()}; largest miss {np.max(np.abs(peaks - expected)) if len(peaks) == len(expected) else np.nan:.3g} m; "
+          f"after the stop |x| <= {after.max():.5f} m (F_c/k = {band:.5f})")
+    assert len(peaks) == n_stop == 5
+    assert np.max(np.abs(peaks - expected)) < 1e-6
+    assert after.max() <= band and np.abs(v[s[-1] + 2:]).max() < 1e-3 * x0 * np.sqrt(K / M)   # stopped inside it
+    assert np.all(np.diff(after) <= 0.0)                                                      # creeping, not swinging
+
+
 # ---- 2. slack -----------------------------------------------------------------------------------
 SLACK = LINEAR | dict(slack=True, c0=1.5, v0=0.0)
 X0_LIFTED = -0.4  # 0.207 m above the slack point (balance stretch 0.1928 m)

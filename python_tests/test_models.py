@@ -101,7 +101,7 @@ def test_canonical_uses_largest_preset():
     ("linear", ["EA", "c0"]),
     ("cubic", ["a1", "a2", "a3", "pow_F", "pow_eps", "pow_n", "c0"]),
     ("simplified", ["a1", "a2", "a3", "pow_F", "pow_eps", "pow_n", "c0", "c1", "c2", "c_table_dx"]
-     + [f"c_table_{k}" for k in range(1, 7)] + ["c_drag"]),
+     + [f"c_table_{k}" for k in range(1, 7)] + ["c_drag", "c_coulomb", "coulomb_v"]),
     ("linear+slack", ["EA", "c0"]),
 ])
 def test_parameters_exact(text, params):

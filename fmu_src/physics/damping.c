@@ -38,12 +38,28 @@ static double damping_table(const tether_params *p, double ax)
     return (2 * f3 - 3 * f2 + 1) * y[k] + (f3 - 2 * f2 + f) * d[0] + (-2 * f3 + 3 * f2) * y[k + 1] + (f3 - f2) * d[1];
 }
 
+/* The Coulomb (dry-friction) part as a coefficient: the force c_coulomb tanh(v / coulomb_v) of
+ * yarns rubbing on each other, a friction force of nearly constant size against the motion, its
+ * sign smoothed over coulomb_v; divided by v, with the limit c_coulomb / coulomb_v at v = 0 (the
+ * series tanh(r)/r = 1 - r^2/3 + 2 r^4/15, exact to rounding for |r| < 1e-4). */
+static double damping_coulomb(const tether_params *p, double v)
+{
+    if (!(p->c_coulomb > 0.0)) return 0.0;
+    const double r = v / p->coulomb_v;
+    if (fabs(r) < 1e-4) {
+        const double r2 = r * r;
+        return p->c_coulomb / p->coulomb_v * (1.0 - r2 / 3.0 + 2.0 * r2 * r2 / 15.0);
+    }
+    return p->c_coulomb * tanh(r) / v;
+}
+
 double damping_coefficient(const tether_params *p, double x, double v)
 {
     if (p->damping == DAMPING_VISCOUS) return p->c0;
     const double ax = fabs(x);
     /* c_drag |v|: the damping force c_drag |v| v of a body moving through air or water, which
      * also damps large amplitudes more than small ones, but through the velocity */
-    const double c = p->c0 + p->c1 * ax + p->c2 * x * x + damping_table(p, ax) + p->c_drag * fabs(v);
+    const double c = p->c0 + p->c1 * ax + p->c2 * x * x + damping_table(p, ax) + p->c_drag * fabs(v)
+                     + damping_coulomb(p, v);
     return c > 0.0 ? c : 0.0; /* a damper takes energy out, never puts it in */
 }

@@ -28,7 +28,8 @@ int elastic_strain_below(const tether_params *p, double T, double rising_limit, 
 
 /* ---- damping (paper: dynamical property) -------------------------------------------------- */
 /* Damping coefficient: c0 (viscous) or c(x) = c0 + c1 |x| + c2 x^2 + table(|x|) + c_drag |v|
- * (displacement-dependent, with an optional velocity-quadratic drag); v is the elongation rate. */
+ * + c_coulomb tanh(v / coulomb_v) / v (displacement-dependent, with an optional velocity-quadratic
+ * drag and an optional Coulomb friction force); v is the elongation rate. */
 double damping_coefficient(const tether_params *p, double x, double v);
 
 /* ---- Kawabata loading/unloading hysteresis ------------------------------------------------ */

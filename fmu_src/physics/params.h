@@ -30,10 +30,12 @@ typedef struct {
     double pow_F, pow_eps, pow_n;
     double exp_F, exp_eps;
     /* damping: c(x) = c0 + c1 |x| + c2 x^2 + a table over |x| (knots c_table_dx apart),
-     * plus c_drag |v| (velocity-quadratic drag) */
+     * plus c_drag |v| (velocity-quadratic drag) and a Coulomb (dry-friction) force
+     * c_coulomb tanh(v / coulomb_v) */
     double c0, c1, c2;
     double c_table_dx, c_table_1, c_table_2, c_table_3, c_table_4, c_table_5, c_table_6;
     double c_drag;
+    double c_coulomb, coulomb_v;
     /* Kawabata */
     double kaw_LT, kaw_RT, kaw_eps_ref, kaw_F_ref, kaw_residual;
     /* Bouc-Wen */

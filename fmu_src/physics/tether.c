@@ -261,6 +261,9 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (!(p->c1 >= 0.0)) FAIL("c1 = %g N.s/m2: expected c1 >= 0", p->c1);
     if (!(p->c2 >= 0.0)) FAIL("c2 = %g N.s/m3: expected c2 >= 0", p->c2);
     if (!(p->c_drag >= 0.0)) FAIL("c_drag = %g kg/m: expected c_drag >= 0", p->c_drag);
+    if (!(p->c_coulomb >= 0.0) || !isfinite(p->c_coulomb)) FAIL("c_coulomb = %g N: expected a finite c_coulomb >= 0", p->c_coulomb);
+    if (!(p->coulomb_v > 0.0) || !isfinite(p->coulomb_v))
+        FAIL("coulomb_v = %g m/s: expected a positive velocity over which the friction force changes sign", p->coulomb_v);
     if (p->hysteresis == HYSTERESIS_KAWABATA) {
         if (!(p->kaw_LT > 0.05 && p->kaw_LT < 1.95)) FAIL("kaw_LT = %g: expected a linearity in (0.05, 1.95)", p->kaw_LT);
         if (!(p->kaw_RT > 0.0 && p->kaw_RT <= 1.0)) FAIL("kaw_RT = %g: expected a resilience in (0, 1]", p->kaw_RT);

@@ -82,7 +82,7 @@ _PARAMS_EXPONENTIAL = ("exp_F", "exp_eps")
 STIFFNESS_PARAMETERS = {"linear": _PARAMS_LINEAR, "cubic": _PARAMS_CUBIC, "exponential": _PARAMS_EXPONENTIAL}
 _PARAMS_VISCOUS = ("c0",)
 _PARAMS_DISPLACEMENT = ("c0", "c1", "c2", "c_table_dx", "c_table_1", "c_table_2", "c_table_3", "c_table_4",
-                        "c_table_5", "c_table_6", "c_drag")
+                        "c_table_5", "c_table_6", "c_drag", "c_coulomb", "coulomb_v")
 _PARAMS_BOUCWEN = ("bw_A", "bw_beta", "bw_gamma", "bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6", "z0")
 #: the Iwan bank: element stiffnesses, then their slip strains (IWAN_ELEMENTS of each)
 IWAN_ELEMENTS = 16
