@@ -12,7 +12,8 @@ from ..models import IWAN_K, IWAN_K_FIT, ModelSpec, TRACE_PARAMETERS, SWITCHES, 
 from .result import FitError
 
 #: fitted on a log scale (one sign; the engine's steps are relative)
-LOG_SCALED = {"EA", "a1", "exp_F", "exp_eps", "primary_J", "primary_tau", "c0", "bw_A", "kaw_F_ref", "kaw_eps_ref", "creep_J1", "creep_J2", "creep_J3",
+LOG_SCALED = {"EA", "a1", "exp_F", "exp_eps", "c_coulomb", "coulomb_v", "primary_J", "primary_tau", "c0", "bw_A",
+              "kaw_F_ref", "kaw_eps_ref", "creep_J1", "creep_J2", "creep_J3",
               "creep_tau1", "creep_tau2", "creep_tau3", "slip_capacity0", "slip_rate", "slip_knee",
               "slip_load_half", "slip_load_exponent", "slip_regen_tau", "slip_limit", *IWAN_K}
 #: the elastic law and viscous damping: the first stage
