@@ -138,6 +138,7 @@ def test_free_vibration_with_coulomb_friction_and_drag_equals_fmu():
     assert np.max(np.abs(x_eng - x_dry)) > 1e-3       # the friction acts
     assert np.max(np.abs(x_eng - x_fmu)) <= 1e-9
 
+
 def test_forced_spline_input_equals_fmu():
     fmu = _fmu_path()
     t = np.arange(4001) * 1e-3
@@ -219,6 +220,7 @@ def test_fit_recovers_a_coulomb_friction_beside_viscous_damping_within_its_inter
     assert r.rms == pytest.approx(2e-4, rel=0.05)
     for n, lo, hi in zip(r.names, r.ci_low, r.ci_high):
         assert lo <= truth[n] <= hi and hi - lo < 0.2 * truth[n], f"{n}: truth {truth[n]} outside [{lo}, {hi}]"
+
 
 def test_samples_of_weight_zero_are_left_out_of_the_fit_and_the_rest_decide_it():
     """A stretch inside the record ruined (a 5 cm jump) and given weight 0: the fit is the one of

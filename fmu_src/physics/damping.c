@@ -40,17 +40,13 @@ static double damping_table(const tether_params *p, double ax)
 
 /* The Coulomb (dry-friction) part as a coefficient: the force c_coulomb tanh(v / coulomb_v) of
  * yarns rubbing on each other, a friction force of nearly constant size against the motion, its
- * sign smoothed over coulomb_v; divided by v, with the limit c_coulomb / coulomb_v at v = 0 (the
- * series tanh(r)/r = 1 - r^2/3 + 2 r^4/15, exact to rounding for |r| < 1e-4). */
+ * sign smoothed over coulomb_v; divided by v, with the limit c_coulomb / coulomb_v at v = 0
+ * (tanh(r) / r is exact to rounding for any r != 0: tanh(r) rounds to r where r is small). */
 static double damping_coulomb(const tether_params *p, double v)
 {
     if (!(p->c_coulomb > 0.0)) return 0.0;
     const double r = v / p->coulomb_v;
-    if (fabs(r) < 1e-4) {
-        const double r2 = r * r;
-        return p->c_coulomb / p->coulomb_v * (1.0 - r2 / 3.0 + 2.0 * r2 * r2 / 15.0);
-    }
-    return p->c_coulomb * tanh(r) / v;
+    return p->c_coulomb / p->coulomb_v * (r == 0.0 ? 1.0 : tanh(r) / r);
 }
 
 double damping_coefficient(const tether_params *p, double x, double v)
