@@ -345,6 +345,15 @@ void broyden_update(MatrixXd &J, const VectorXd &s, const VectorXd &dr)
 // Jacobians: none with central differences (they polish the optimum), else the option's count.
 int broyden_limit(const kt_fit_options &o) { return o.central_differences == 1 ? 0 : std::max(0, o.broyden_updates); }
 
+// A secant-updated Jacobian is trusted for steps of at most this size in every scaled coordinate
+// (log-scaled: a factor e; linear: one start magnitude); a longer step is taken only with a
+// finite-difference Jacobian. Without the bound, steps along a poor update drove log-scaled
+// stiffnesses to 1e-241, where their columns vanish for good (docs/speed.md, 2026-12-01).
+constexpr double KT_SECANT_TRUST = 1.0;
+// ... and updated again only after a step whose decrease was at least this share of the decrease
+// its linear model predicted; after a poorer step the next Jacobian is a finite-difference one
+constexpr double KT_SECANT_AGREEMENT = 0.25;
+
 LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit_options &o, Counters &C, int start_no,
                              int stage = 0, int n_stages = 1)
 {
@@ -416,6 +425,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
         }
         VectorXd dscale = A.diagonal().cwiseMax(1e-12 * std::max(1e-300, A.diagonal().maxCoeff()));
         bool accepted = false, converged = false, redo = false;
+        double agreement = 0; // the accepted step's decrease over its predicted decrease (rho)
         VectorXd th_before = th, r_before = r;
         // (the loop can try several lambdas side by side, n_cand > 1; measured: it did not save
         // iterations on the full-model benchmark, so one candidate per try)
@@ -425,17 +435,18 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
             std::vector<VectorXd> cand, rs;
             std::vector<char> oks;
             std::vector<double> preds;
-            bool small = false;
+            bool small = false, far = false;
             for (int c = 0; c < n_cand; ++c) {
                 MatrixXd M = A;
                 M.diagonal() += lams[c] * dscale;
                 VectorXd tn = clip(P, th + M.ldlt().solve(-g));
                 VectorXd step = tn - th;
                 if (c == 0 && step.norm() <= o.xtol * (th.norm() + o.xtol)) { small = true; break; }
+                if (updates > 0 && step.lpNorm<Eigen::Infinity>() > KT_SECANT_TRUST) { far = true; break; }
                 preds.push_back(-(g.dot(step) + 0.5 * step.dot(A * step)));
                 cand.push_back(tn);
             }
-            if (small && updates > 0) { need_jacobian = true; redo = true; break; }
+            if ((small || far) && updates > 0) { need_jacobian = true; redo = true; break; }
             if (small) { converged = true; R.message = "step small"; break; }
             P.batch(cand, rs, oks);
             C.evaluations += (long)cand.size();
@@ -450,6 +461,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
             if (best >= 0) {
                 const double rho = (cost - cn) / std::max(preds[(std::size_t)best], 1e-300);
                 const double rel = (cost - cn) / cost;
+                agreement = rho;
                 th = cand[(std::size_t)best];
                 r = rs[(std::size_t)best];
                 cost = cn;
@@ -504,7 +516,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
         }
         if (converged) { R.status = 0; break; }
         if (!accepted) { R.status = 0; R.message = "no decrease found"; break; }
-        if (!need_jacobian && updates < max_updates) {
+        if (!need_jacobian && updates < max_updates && agreement >= KT_SECANT_AGREEMENT) {
             broyden_update(J, th - th_before, r - r_before);
             ++updates;
         } else {
