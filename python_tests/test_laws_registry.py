@@ -143,7 +143,7 @@ def test_the_plan_is_the_table_of_the_docs():
 def _state(**kw):
     state = dict(budget_hit=False, search_again=False, rival_kept=False, named_again=lambda: False,
                  shapes_left=lambda: False, reseedable=lambda: False, has_rival=lambda: False,
-                 laws_changed=lambda: set(), branch_due=lambda: False)
+                 laws_changed=lambda: set(), branch_due=lambda: False, pairs_due=lambda: False)
     state.update(kw)
     return types.SimpleNamespace(**state)
 
@@ -157,8 +157,9 @@ def test_the_plan_conditions_read_the_search_state_as_documented():
     (the budget not spent) the shapes and the wider laws always; the second search only once a kept
     shape asked for it; its shapes only where it named an effect or left shapes; the rival law only
     where the step fitted one; the reseed stages where a law can be reseeded (the second only after
-    the rival was kept); the re-test where a law changed; a spent budget leaves the first search
-    and the final fit."""
+    the rival was kept); the re-test where a law changed; the pairs where the search stopped without
+    a winner (pairs_due, tested in test_discover_pairs.py) and before the reseed; a spent budget
+    leaves the first search and the final fit."""
     assert _due(_state()) == ["effects", "shapes", "wider laws", "final fit"]
     assert _due(_state(budget_hit=True, search_again=True, rival_kept=True, has_rival=lambda: True,
                        laws_changed=lambda: {"hysteresis"})) == ["effects", "effects again", "final fit"]
@@ -170,6 +171,8 @@ def test_the_plan_conditions_read_the_search_state_as_documented():
     assert "reseed the rival" in _due(_state(reseedable=lambda: True, rival_kept=True))
     assert "re-test" in _due(_state(laws_changed=lambda: {"nonlinear_stiffness"}))
     assert _due(_state(branch_due=lambda: True)) == ["effects", "shapes", "wider laws", "rival branch", "final fit"]
+    assert _due(_state(pairs_due=lambda: True, reseedable=lambda: True)) == [
+        "effects", "shapes", "pairs", "reseed", "wider laws", "final fit"]
 
 
 def test_a_run_whose_budget_is_spent_at_once_runs_the_first_search_and_the_final_fit_only(free_vibration):

@@ -1,8 +1,8 @@
 """The judge: every threshold of acceptance in one place (Criteria), the BIC change computed once
 (bic_change), and the rules side by side: an effect on the whole record (full_data_verdict) and on
 the held-out part (heldout_verdict), slack that must act (_slack_acts), hysteresis whose loops
-must earn their place (_loops_open), a shape (_shape_judged), a
-rival law (_law_judged), two laws that tie in a step (rival_tie), two optima of one model
+must earn their place (_loops_open), two effects added as a pair (pair_verdict), a shape
+(_shape_judged), a rival law (_law_judged), two laws that tie in a step (rival_tie), two optima of one model
 (optimum_judged: the Iwan bank's restart in rival.py, the rival branch), and when the damping
 table is tried (_partial_damping_gain).
 docs/discovery.md, "The criteria, and why", tells the measurements behind each value."""
@@ -237,6 +237,21 @@ def full_data_verdict(sigma: float, rms_before: float, rms_after: float, bic_cha
     if why:
         return False, "; ".join(why)
     return True, f"gap {g0 / sigma:.2f} -> {g1 / sigma:.2f} sigma, BIC {bic_change:+.0f}"
+
+
+def pair_verdict(sigma: float, cur: ModelFit, fm: ModelFit, without: Sequence, n: int) -> tuple[bool, str]:
+    """Two effects added together (the fit ``fm``): the pair earns its place against the current
+    model ``cur`` by the whole record's rule (full_data_verdict, with the parameters of both), and
+    each effect earns its own by the same rule against the pair's model without it (``without``:
+    (effect, fit of the model without it)): a pair is not a lone effect with a passenger."""
+    ok, why = full_data_verdict(sigma, cur.rms, fm.rms, bic_change(cur, fm, n), fm.n_free - cur.n_free)
+    if not ok:
+        return False, why
+    for effect, rf in without:
+        keep, own = full_data_verdict(sigma, rf.rms, fm.rms, bic_change(rf, fm, n), fm.n_free - rf.n_free)
+        if not keep:
+            return False, f"{why}, but {effect} does not earn its place beside the other: {own}"
+    return True, why
 
 
 def heldout_verdict(sigma: float, held_before: float, held_after: float, rms_before: float | None = None,

@@ -44,6 +44,11 @@ PLAN = (
           "or a named law has shapes not yet refined", lambda s: s.search_again and not s.budget_hit and (
               s.named_again() or s.shapes_left()), "refine_shapes_again",
           "the shape groups of the laws not refined yet", "_shape_judged"),
+    Stage("pairs", "the last search for effects stopped with no candidate earning its place, the model misses the "
+          "record by CRITERIA.unexplained_gap or more, and the budget is not spent", lambda s: s.pairs_due(),
+          "search_pairs", "the search for effects once more; where a step has no winner, the refused candidate that "
+          "lowered the BIC most beside each other missing effect, as one candidate (pairs.py); then the shapes of "
+          "the laws it named", "as in the first search; a pair: pair_verdict, heldout_verdict (and acts_as_itself)"),
     Stage("reseed", "a named law has reseeding moves (the Iwan bank), the model misses the record by "
           "CRITERIA.iwan_stages_gap or more, and the budget is not spent", lambda s: s.reseedable(), "reseed",
           "the law's reseeding moves in turn (Law.reseed: the idle Iwan elements restarted, a finer bank); where "

@@ -30,6 +30,7 @@ from .records import CandidateResult, Discovery, DiscoveryError, Refinement, Rem
 from .refine import _knots_unseen, _shape_groups, refine_shapes
 from . import rival
 from .branch import RivalBranch
+from .pairs import PairStep
 from .rival import IWAN_STAGE_CAP_FACTOR
 from .samples import _truncated, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
 from .scales import _scales
@@ -88,7 +89,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     return Search(trace, start, progress, max_steps, heldout_candidates, budget, nuisance).run()
 
 
-class Search(RivalBranch):
+class Search(PairStep, RivalBranch):
     """One discovery run: the record (searched, and whole where the search thins it), its noise and
     held-out split, the current fit and its held-out error, the steps, removals and refinements so
     far, the work caps and the budget. run() takes the stages in turn: the search for effects
@@ -140,6 +141,8 @@ class Search(RivalBranch):
         self.branch = None               # the search with a tied law in the winner's place (branch.py)
         self.branched = False            # this search is such a branch: it sets none aside
         self.stages: list[str] = []      # the plan's stages run so far, in order
+        self.no_winner = False           # the last search for effects stopped with no candidate earning its place
+        self.pairs_on = False            # a step without a winner tries pairs (the plan's stage "pairs")
         self.stop = ""
         self.fit_start_model()
 
@@ -350,7 +353,13 @@ class Search(RivalBranch):
         for c in results:
             self.say(f"  {c.effect}: {'earns' if c.accepted else 'does not earn'} its parameters: {c.verdict}")
         if not win.accepted:
+            pair = self.pair_of_refused(results) if self.pairs_on and self.pair_due(results) else None
+            if pair is not None:
+                self.add_pair(pair, results, step, windows)
+                return True
             self.stop_without_winner(results)
+            if self.budget_hit:
+                self.stop = self.out_of_budget(f"while pairs of effects were fitted in step {len(self.steps)}")
             return False
         self.fork_at_tie(win, step, windows)
         self.add(win, results, step, windows)
@@ -493,6 +502,7 @@ class Search(RivalBranch):
         slack and fits lower is kept as the current model, better fitted."""
         cur, sigma = self.cur, self.sigma
         self.stop = "no candidate earns its parameters"
+        self.no_winner = True
         refit = _refit_without_slack(self.trace, cur, results, sigma)
         for c in results:
             c.forget_curves()
