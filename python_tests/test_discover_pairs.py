@@ -150,3 +150,23 @@ def test_the_pairs_stage_runs_only_after_a_search_that_stopped_without_a_winner(
     assert s.pairs_due()
     s.cur = _fit("linear", (), 1.3, 3)
     assert not s.pairs_due()
+
+
+def test_a_pairs_stage_that_names_nothing_leaves_the_search_as_it_was(monkeypatch):
+    """The stage's own search for effects may refit the model on its way (a slack candidate's refit
+    that never goes slack is kept by a step without a winner); where it names no pair, the model,
+    its fits, steps and stop reason are those from before, the stop reason saying pairs were tried."""
+    s, _ = _search(monkeypatch, {}, {})
+    s.stop, s.no_winner = "no candidate earns its parameters", True
+    refit = _fit("linear", (), 19.0, 3)
+
+    def search_effects():
+        s.steps.append(Step(model_before="linear", rms_before=LINEAR.rms, heldout_before=s.cur_held, windows=[],
+                            regimes={}, candidates=[]))
+        s.cur, s.stop = refit, "no candidate earns its parameters; the slack candidate's refit is kept"
+        s.fits.append(refit)
+
+    s.search_effects = search_effects
+    s.search_pairs()
+    assert s.cur is LINEAR and s.fits == [LINEAR] and s.steps == []
+    assert s.stop == "no candidate earns its parameters; no pair of effects earns its place either"

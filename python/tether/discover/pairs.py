@@ -34,14 +34,19 @@ class PairStep:
 
     def search_pairs(self) -> None:
         """The search for effects once more from the current model, a step without a winner trying
-        pairs; the shapes of the laws it names, refined."""
-        before = self.cur.effects
+        pairs; the shapes of the laws it names, refined. Where it names nothing, the search is left
+        as it was (its model, fits, steps and stop reason): the stage only adds pairs."""
+        before = (self.cur, self.cur_held, list(self.fits), list(self.steps), list(self.removals), self.stop)
         self.no_winner, self.pairs_on = False, True
         self.say(f"searching for effects that earn their place only as a pair (RMS error "
                  f"{self.cur.rms / self.sigma:.2f} x noise)")
         self.search_effects()
         self.pairs_on = False
-        if self.cur.effects != before and not self.budget_hit:
+        if self.cur.effects == before[0].effects:
+            self.cur, self.cur_held, self.fits, self.steps, self.removals, stop = before
+            self.stop = stop + ("; " + self.out_of_budget("while pairs of effects were fitted") if self.budget_hit
+                                else "; no pair of effects earns its place either")
+        elif not self.budget_hit:
             self.reshape(self.refined_effects(), where="while the shapes of the laws named as a pair were refined")
 
     def pair_due(self, results: list) -> bool:
