@@ -12,7 +12,7 @@ import copy
 import time
 from dataclasses import replace
 
-from .judge import CRITERIA, _gap, _law_judged, bic_change, optimum_judged, rival_tie, same_terms
+from .judge import _gap, _law_judged, leaves_unexplained, bic_change, optimum_judged, rival_tie, same_terms
 from .laws import RIVAL_LAWS, _law_of
 from .plan import PLAN
 from .records import CandidateResult, Refinement, Step
@@ -53,7 +53,7 @@ class RivalBranch:
             return False
         now = time.perf_counter()
         affordable = self.deadline is None or self.deadline - now >= now - self.branch.forked_at
-        return affordable and _gap(self.cur.rms, self.sigma) >= CRITERIA.unexplained_gap * self.sigma
+        return affordable and leaves_unexplained(self.cur.rms, self.sigma)
 
     def carry_rival_branch(self) -> None:
         """The branch carried on through the plan's stages (the final fit aside); its model judged

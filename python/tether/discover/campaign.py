@@ -50,7 +50,7 @@ from ..traces import Trace
 from .document import ordinal
 from .fitting import (CAP_SIMULATIONS, DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict,
                       work_ratio)
-from .judge import CRITERIA, _gap, _law_judged, bic_change, retested_beside_refinements
+from .judge import CRITERIA, _gap, _law_judged, bic_change, leaves_unexplained, retested_beside_refinements
 from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates,
                    free_parameters)
 from .nuisance import baked, nuisance_parameters, nuisance_start
@@ -360,7 +360,7 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         if not effect:
             return []
         return [i for i, r in enumerate(self.records) if i != lead and effect in candidates(r.trace)
-                and _gap(self.cur.rms_records[i], r.sigma) >= CRITERIA.unexplained_gap * r.sigma
+                and leaves_unexplained(self.cur.rms_records[i], r.sigma)
                 and any(m.canonical == spec.canonical for m in _models_for(self.cur.spec, effect, r.trace))]
 
     def nuisance_then_law(self, f: CampaignFit, own_thread: bool = False, cap_factor: float = 1.0) -> CampaignFit:
@@ -496,7 +496,7 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         docs/campaign-discovery.md, session 44). Not where they last ran for the same named effects
         (the steps resumed after them). True where they ran."""
         named = tuple(self.named())
-        if not named or named == self.refined_for or _gap(self.cur.rms, 1.0) >= CRITERIA.unexplained_gap:
+        if not named or named == self.refined_for or leaves_unexplained(self.cur.rms, 1.0):
             return False
         self.say(f"near the noise ({self.cur.rms:.2f} x): the named laws refined before a further step")
         self.last_stages()
@@ -578,7 +578,7 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         law = cur.spec.hysteresis
         if self.within_noise(cur) or law not in RIVAL_LAWS[effect] or effect not in self.named():
             return
-        still_missing = any(_gap(e, r.sigma) >= CRITERIA.unexplained_gap * r.sigma
+        still_missing = any(leaves_unexplained(e, r.sigma)
                             for e, r in zip(cur.rms_records, self.records))
         if self.named()[-1:] == [effect] and not still_missing:
             return

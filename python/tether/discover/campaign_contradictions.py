@@ -12,7 +12,7 @@ from typing import Sequence
 from .. import nuisance as NZ
 from .campaign_records import CampaignFit
 from .fitting import ModelFit, fit_model
-from .judge import CRITERIA, _bic, _gap, full_data_verdict
+from .judge import CRITERIA, _bic, _gap, full_data_verdict, leaves_unexplained
 
 
 class Contradictions:
@@ -65,7 +65,7 @@ class Contradictions:
                                 extra=self.cur.shape)
                 if rest.ok:
                     rest = self.settle(rest)   # the nuisance and the law in turn
-                good = rest.ok and all(_gap(e, r.sigma) < CRITERIA.unexplained_gap * r.sigma
+                good = rest.ok and all(not leaves_unexplained(e, r.sigma)
                                        for e, r in zip(rest.rms_records, self.records))
                 self.say(f"  without {name}: " + ", ".join(
                     f"{r.name} {e / r.sigma:.2f}" for e, r in zip(rest.rms_records, self.records))
@@ -140,5 +140,5 @@ def _explained_alone(rms_alone: float, sigma: float) -> bool:
     others: where the model misses a record even alone, the misfit under the shared law may be the
     effect still missing, not another tether (campaign 1000: creep missing, the creep test bent the
     shared law and the free vibration was flagged at 27.7 x its noise, 9.36 x alone)."""
-    return _gap(rms_alone, sigma) < CRITERIA.unexplained_gap * sigma
+    return not leaves_unexplained(rms_alone, sigma)
 

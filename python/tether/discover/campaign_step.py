@@ -13,8 +13,8 @@ from ..models import EFFECTS, ModelSpec
 from .campaign_records import CampaignCandidate, CampaignFit, CampaignStep, in_noise_units, ranked_bic_change
 from .evidence import regimes
 from .fitting import ModelFit, _side_by_side
-from .judge import (CRITERIA, _bic, _gap, _slack_acts, bic_change, closed_loops, full_data_verdict, heldout_verdict,
-                    loops_verdict, slack_heldout_unasked)
+from .judge import (_bic, _gap, _slack_acts, bic_change, closed_loops, full_data_verdict, heldout_verdict,
+                    leaves_unexplained, loops_verdict, slack_heldout_unasked)
 from .laws import EFFECT, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, candidates, unrevealed
 from .starts import candidate_starts
 
@@ -73,7 +73,7 @@ class Steps:
             r = self.records[i]
             added = f.n_free - self.cur.n_free
             if (self.reveals(i, self.cur.rms_records[i], f.rms_records[i], added)
-                    or _gap(f.rms_records[i], r.sigma) < CRITERIA.unexplained_gap * r.sigma):
+                    or not leaves_unexplained(f.rms_records[i], r.sigma)):
                 continue
             self.say(f"  {e}: its law {_law_of(new, e)} leaves {r.name} at {f.rms_records[i] / r.sigma:.2f} x its "
                      f"noise ({self.cur.rms_records[i] / r.sigma:.2f} before): the wider law {_law_of(other, e)} "

@@ -210,6 +210,12 @@ def _gap(rms: float, sigma: float) -> float:
     return math.sqrt(max(rms ** 2 - sigma ** 2, 0.0))
 
 
+def leaves_unexplained(rms: float, sigma: float) -> bool:
+    """Whether a model that misses a record by ``rms`` (its noise ``sigma``) leaves something
+    unexplained: a gap above the noise of CRITERIA.unexplained_gap sigma or more."""
+    return _gap(rms, sigma) >= CRITERIA.unexplained_gap * sigma
+
+
 def _required_fraction(base: float, gap_over_noise: float) -> float:
     """The fraction a gap must shrink to: ``base`` for gaps up to CRITERIA.relax_from_gap (3 sigma),
     relaxed towards base + CRITERIA.relax_by (0.3; at ten times that gap and beyond). Where the gap

@@ -14,7 +14,7 @@ from dataclasses import replace
 
 from .document import _evidence
 from .fitting import _heldout, _side_by_side
-from .judge import CRITERIA, _gap, acts_as_itself, bic_change, heldout_verdict, pair_verdict
+from .judge import acts_as_itself, bic_change, heldout_verdict, leaves_unexplained, pair_verdict
 from .laws import _models_for, _replaced, _without, candidates
 from .records import CandidateResult, Step
 from .starts import candidate_starts
@@ -29,8 +29,7 @@ class PairStep:
         (after the named laws' shapes were refined: a law of the wrong shape leaves a gap that a
         pair would take), the model misses the record by CRITERIA.unexplained_gap or more, and the
         budget is not spent."""
-        return (self.no_winner and not self.budget_hit
-                and _gap(self.cur.rms, self.sigma) >= CRITERIA.unexplained_gap * self.sigma)
+        return self.no_winner and not self.budget_hit and leaves_unexplained(self.cur.rms, self.sigma)
 
     def search_pairs(self) -> None:
         """The search for effects once more from the current model, a step without a winner trying
@@ -52,7 +51,7 @@ class PairStep:
     def pair_due(self, results: list) -> bool:
         """The model misses the record by CRITERIA.unexplained_gap or more, the budget is not spent,
         and a refused candidate lowered the error (a lead for a pair)."""
-        return (not self.budget_hit and _gap(self.cur.rms, self.sigma) >= CRITERIA.unexplained_gap * self.sigma
+        return (not self.budget_hit and leaves_unexplained(self.cur.rms, self.sigma)
                 and _pair_lead(results, self.cur.rms) is not None)
 
     def pair_of_refused(self, results: list) -> tuple[CandidateResult, CandidateResult] | None:

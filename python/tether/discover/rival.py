@@ -13,7 +13,8 @@ from ..models import ELASTIC_PARAMETERS, HYSTERESIS_PARAMETERS, IWAN_EPS, IWAN_K
 from .. import nuisance as NZ
 from ..traces import Trace
 from .fitting import _heldout, ModelFit
-from .judge import CRITERIA, _gap, _law_judged, _shape_heldout_asked, _shape_judged, bic_change, optimum_judged
+from .judge import (CRITERIA, _law_judged, _shape_heldout_asked, _shape_judged, bic_change, leaves_unexplained,
+                    optimum_judged)
 from .laws import _law_of, _with_law, RIVAL_LAWS, SHAPE_TERMS, WIDER_LAWS
 from .records import Refinement
 
@@ -93,7 +94,7 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     law = cur.spec.hysteresis
     laws = RIVAL_LAWS[effect]
     named_last = list(added)[-1:] == [effect]
-    still_missing = _gap(cur.rms, sigma) >= CRITERIA.unexplained_gap * sigma
+    still_missing = leaves_unexplained(cur.rms, sigma)
     if (cur.rms <= CRITERIA.within_noise * sigma or law not in laws or effect not in added
             or (named_last and not elastic_reshaped and not still_missing)):
         return cur, cur_held, None

@@ -19,7 +19,7 @@ from .evidence import disagreement, regime_table, regimes, signatures
 from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, fit_model, ModelFit, predict,
                       SECOND_SEARCH_CAP_SHARE, work_ratio)
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
-                    bic_change, full_data_verdict, heldout_verdict, retested_beside_refinements,
+                    bic_change, full_data_verdict, heldout_verdict, leaves_unexplained, retested_beside_refinements,
                     slack_heldout_unasked)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
 from .plan import PLAN
@@ -275,7 +275,7 @@ class Search(PairStep, RivalBranch):
         the noise too little is left to hide one (a further effect must halve the gap)."""
         before = len(self.refinements)
         held = self.reshape(self.refined_effects(), where="while the shapes of the laws were refined")
-        if held is None or _gap(self.cur.rms, self.sigma) < CRITERIA.unexplained_gap * self.sigma:
+        if held is None or not leaves_unexplained(self.cur.rms, self.sigma):
             return
         self.free_shapes(tuple(k for r in self.refinements[before:] if r.accepted for k in r.parameters))
         if not math.isfinite(held):

@@ -9,7 +9,7 @@ import math
 
 from ..models import EFFECTS, parse_model
 from .evidence import disagreement, lowest_elongation, regimes, slack_reach
-from .judge import CRITERIA, _gap
+from .judge import CRITERIA, _gap, leaves_unexplained
 from .laws import unrevealed
 from .records import Discovery, Retest
 
@@ -154,9 +154,9 @@ def unexplained(d: Discovery) -> dict | None:
     """Where the final model misses the record by CRITERIA.unexplained_gap sigma or more: the gap,
     as rmse_final / noise, and in words where it is largest and why the search stopped; else None."""
     sigma, final = d.noise.sigma, d.final
-    gap = _gap(final.rms, sigma)
-    if gap < CRITERIA.unexplained_gap * sigma:
+    if not leaves_unexplained(final.rms, sigma):
         return None
+    gap = _gap(final.rms, sigma)
     windows = sorted(disagreement(d.trace, final, sigma, regimes(d.trace, final)), key=lambda w: -w.share)[:2]
     where = "; the residual is largest in " + ", ".join(
         f"{w.start:.4g}-{w.end:.4g} s ({', '.join(w.regimes) or 'no single regime'})" for w in windows) if windows else ""
