@@ -145,11 +145,11 @@ def test_the_branch_runs_every_stage_of_the_plan_but_the_branch_and_the_final_fi
     alt.fork = (_candidate("linear+iwan", 9.83, 14), [], 1, "boucwen")
     alt.heldout_of = lambda m: 2.0 * m.rms
     alt.add = lambda c, results, step, windows: ran.append(("add", c.model, c.heldout_rms))
-    alt.retest_named = lambda c: ran.append(("retest", c.model))
+    alt.retest_named = lambda *added: ran.append(("retest", added))
     alt.search_effects = lambda: ran.append("search_effects")
     alt.carry_rival_branch = alt.final_fit = lambda: ran.append("must not run")
     alt.resume_branch()
-    assert ran == [("add", "linear+iwan", 2 * 9.83 * SIGMA), ("retest", "linear+iwan"), "search_effects"]
+    assert ran == [("add", "linear+iwan", 2 * 9.83 * SIGMA), ("retest", ("hysteresis",)), "search_effects"]
     assert alt.stages == ["effects"]
 
 

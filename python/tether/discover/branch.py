@@ -92,7 +92,7 @@ class RivalBranch:
         carried, windows, _, _ = self.fork
         carried.heldout_rms = self.heldout_of(carried.fit)
         self.add(carried, [], self.steps[-1], windows)
-        self.retest_named(carried)
+        self.retest_named(carried.effect)
         for stage in PLAN:
             if stage.proposer not in ("carry_rival_branch", "final_fit") and stage.when(self):
                 getattr(self, stage.proposer)()

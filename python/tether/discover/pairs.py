@@ -134,9 +134,7 @@ class PairStep:
         partner.effect, partner.rms_after, partner.model_after = second.effect, second.rms, second.model
         partner.evidence = _evidence(second, windows)
         self.say(f"added {first.effect} and {second.effect} as a pair")
-        self.retest([x for x in self.cur.effects if x not in self.base_effects and x not in (first.effect, second.effect)],
-                    f"{first.effect} and {second.effect}")
-        self.retested_at = len(self.refinements)
+        self.retest_named(first.effect, second.effect)
 
 
 def _pair_lead(results: list, rms: float) -> CandidateResult | None:

@@ -363,7 +363,7 @@ class Search(PairStep, RivalBranch):
             return False
         self.fork_at_tie(win, step, windows)
         self.add(win, results, step, windows)
-        self.retest_named(win)
+        self.retest_named(win.effect)
         return True
 
     def judged_candidates(self, todo: list, sig: dict) -> list:
@@ -532,10 +532,11 @@ class Search(PairStep, RivalBranch):
             if c is not win:
                 c.forget_curves()
 
-    def retest_named(self, win: CandidateResult) -> None:
-        """Does an effect added earlier still earn its parameters next to the new one (the whole
-        record's rule)? The first that does not is removed."""
-        self.retest([x for x in self.cur.effects if x not in self.base_effects and x != win.effect], win.effect)
+    def retest_named(self, *added: str) -> None:
+        """Does an effect added earlier still earn its parameters next to the ones just ``added`` (the
+        step's winner, or a pair's two effects), by the whole record's rule? The first that does not
+        is removed."""
+        self.retest([x for x in self.cur.effects if x not in self.base_effects and x not in added], " and ".join(added))
         self.retested_at = len(self.refinements)
 
     def retest(self, effects: Sequence[str], beside: str, record_beside: str | None = None) -> bool:
