@@ -102,7 +102,7 @@ def test_two_effects_refused_alone_are_added_as_a_pair_in_two_steps(monkeypatch)
     s, asked = _search(monkeypatch, {PAIR: pair}, {PAIR: 1.2})
     results = [_refused(CUBIC, "nonlinear_stiffness"), _refused(DAMPED, "nonlinear_damping")]
     monkeypatch.setattr(pairs, "candidates", lambda tr: ("nonlinear_stiffness", "nonlinear_damping"))
-    assert s.pair_due(results)
+    assert s.pair_worth_trying(results)
     found = s.pair_of_refused(results)
     assert asked == [PAIR]
     assert found is not None and [c.effect for c in found] == ["nonlinear_stiffness", "nonlinear_damping"]
@@ -132,11 +132,11 @@ def test_no_pair_is_tried_where_the_model_is_within_the_unexplained_gap(monkeypa
     s, _ = _search(monkeypatch, {}, {})
     s.cur = _fit("linear", (), 1.3, 3)
     near = _fit("cubic", ("nonlinear_stiffness",), 1.2, 4)
-    assert not s.pair_due([CandidateResult("nonlinear_stiffness", "cubic", 1, near.rms, float("nan"), -5.0, 0.0, "",
+    assert not s.pair_worth_trying([CandidateResult("nonlinear_stiffness", "cubic", 1, near.rms, float("nan"), -5.0, 0.0, "",
                                            fit=near)])
     s.cur = LINEAR
     worse = _refused(_fit("cubic", ("nonlinear_stiffness",), 20.5, 4), "nonlinear_stiffness")
-    assert not s.pair_due([worse])
+    assert not s.pair_worth_trying([worse])
 
 
 def test_the_pairs_stage_runs_only_after_a_search_that_stopped_without_a_winner(monkeypatch):

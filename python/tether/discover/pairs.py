@@ -48,7 +48,7 @@ class PairStep:
         elif not self.budget_hit:
             self.reshape(self.refined_effects(), where="while the shapes of the laws named as a pair were refined")
 
-    def pair_due(self, results: list) -> bool:
+    def pair_worth_trying(self, results: list) -> bool:
         """The model misses the record by CRITERIA.unexplained_gap or more, the budget is not spent,
         and a refused candidate lowered the error (a lead for a pair)."""
         return (not self.budget_hit and leaves_unexplained(self.cur.rms, self.sigma)

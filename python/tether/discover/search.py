@@ -353,7 +353,7 @@ class Search(PairStep, RivalBranch):
         for c in results:
             self.say(f"  {c.effect}: {'earns' if c.accepted else 'does not earn'} its parameters: {c.verdict}")
         if not win.accepted:
-            pair = self.pair_of_refused(results) if self.pairs_on and self.pair_due(results) else None
+            pair = self.pair_of_refused(results) if self.pairs_on and self.pair_worth_trying(results) else None
             if pair is not None:
                 self.add_pair(pair, results, step, windows)
                 return True
