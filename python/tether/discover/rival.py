@@ -353,6 +353,13 @@ def _split_in_two(k: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return np.r_[k / 2, k / 2], np.r_[e * (1 - IWAN_SPLIT), e * (1 + IWAN_SPLIT)]
 
 
+#: the finer bank's fits take the whole record at once, without the engine's horizon stages: their
+#: starts come from a model fitted to the whole record, so its phase is already right, and a stage
+#: on the record's first part lets the bank's 32 terms settle where the rest of the record is worse
+#: off than at the start (docs/reproducibility.md, 2026-12-02)
+FINER_BANK_ENGINE = {"horizon_stages": 1}
+
+
 def finer_banks(params: dict, bank: Sequence[str]) -> list[dict]:
     """The finer banks of IWAN_ELEMENTS elements from the bank of the elements ``bank`` (their
     stiffnesses' names) in ``params``: _finer_spread's and _finer_kept's, as parameters, those with
@@ -390,7 +397,7 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
     terms = tuple(n for n in IWAN_K + IWAN_EPS if n not in cur.free)
     extra = tuple(cur.shape) + tuple(n for n in IWAN_K[len(bank):] + IWAN_EPS if n not in cur.shape)
     cap_factor = bank_cap_factor(len(IWAN_K))
-    fm = fit(trace, cur.spec, cur.effects, starts, extra=extra, cap_factor=cap_factor)
+    fm = fit(trace, cur.spec, cur.effects, starts, extra=extra, cap_factor=cap_factor, **FINER_BANK_ENGINE)
     n = len(trace.time)
     bic = bic_change(cur, fm, n)
     held = float("nan")
@@ -398,7 +405,7 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
         ok, verdict = False, f"the fit failed: {fm.message}"
     else:
         if bic < 0.0 and fm.rms < cur.rms and _shape_heldout_asked(cur.rms, cur_held, fm.rms, sigma):
-            pf = fit(part, fm.spec, fm.effects, [fm.params], extra=extra, cap_factor=cap_factor)
+            pf = fit(part, fm.spec, fm.effects, [fm.params], extra=extra, cap_factor=cap_factor, **FINER_BANK_ENGINE)
             held = _heldout(trace, fm.spec, pf.params, first) if pf.ok else float("inf")
         ok, verdict = _shape_judged(cur.rms, fm.rms, bic, cur_held, held, sigma,
                                     f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC changes "

@@ -169,7 +169,7 @@ class Search(PairStep, RivalBranch):
 
     # ---- fits, as every stage asks for them
     def fit(self, tr, sp, eff, starts, scales, extra=(), held=(), own_thread=False, baseline_rms=None,
-            cap_factor: float | None = None) -> ModelFit:
+            cap_factor: float | None = None, **engine) -> ModelFit:
         """fit_model with the search's shape terms free (and those they replace held), the unseen
         knots of the damping table held in a fit of the first part, the stage's work cap and the
         budget's deadline; a fit that ends past the deadline marks the budget spent. The nuisance
@@ -178,7 +178,7 @@ class Search(PairStep, RivalBranch):
         test judges the law, not a mass or an offset refitted to bend the first part. The work cap:
         ``cap_factor`` of the stage's, by default a step candidate's (candidate_cap_factor), counted in
         simulations of the model being fitted where it simulates slower than the current model
-        (own_work_ratio)."""
+        (own_work_ratio). ``engine``: options of the engine for this fit (fit_model's)."""
         if cap_factor is None:
             cap_factor = self.candidate_cap_factor()
         extra = tuple(extra) + tuple(k for k in self.shape_free if k not in extra and k in sp.parameters)
@@ -190,15 +190,15 @@ class Search(PairStep, RivalBranch):
         work_cap = cap_factor * self.fit_cap * self.own_work_ratio(tr, sp, starts[0])
         r = fit_model(tr, sp, eff, starts, scales, work_cap=work_cap, extra=extra, held=held,
                       deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms,
-                      nuisance=() if tr is self.part else self.nuisance)
+                      nuisance=() if tr is self.part else self.nuisance, **engine)
         if self.deadline is not None and time.perf_counter() > self.deadline:
             self.budget_hit = True           # this fit may have been cut short: it cannot judge
         return r
 
-    def shape_fit(self, tr, sp, eff, starts, extra, own_thread=False, cap_factor=1.0) -> ModelFit:
+    def shape_fit(self, tr, sp, eff, starts, extra, own_thread=False, cap_factor=1.0, **engine) -> ModelFit:
         """A fit with the shape terms ``extra`` free and the terms they replace held."""
         return self.fit(tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, extra,
-                        held=_replaced(extra), own_thread=own_thread, cap_factor=cap_factor)
+                        held=_replaced(extra), own_thread=own_thread, cap_factor=cap_factor, **engine)
 
     def own_work_ratio(self, tr: Trace, sp, start: dict | None) -> float:
         """The work of one simulation of ``sp`` from ``start`` over ``tr`` against the current model's
