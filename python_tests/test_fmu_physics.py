@@ -181,10 +181,12 @@ def test_velocity_quadratic_drag_decays_as_the_averaged_law_and_a_second_integra
     assert np.max(np.abs(np.diff(1.0 / peaks) - expected)) < 0.05 * expected
 
 
-def test_coulomb_friction_drops_each_peak_by_twice_the_friction_over_the_stiffness_and_stops_inside_it():
+@pytest.mark.parametrize("law", [dict(damping=2, c1=0.0, c2=0.0), dict(damping=3)], ids=["displacement", "coulomb"])
+def test_coulomb_friction_drops_each_peak_by_twice_the_friction_over_the_stiffness_and_stops_inside_it(law):
     """Free vibration with dry friction only (c0 = 0, c_coulomb tanh(v / coulomb_v), the sign
-    sharp): the closed form of m x'' + F_c sgn(x') + k x = 0 released from rest at x0. Each half
-    cycle is a harmonic arc about +-F_c/k, so successive extrema fall by 2 F_c/k in size (4 F_c/k
+    sharp), through the displacement law with c1 = c2 = 0 and through the coulomb law (damping = 3),
+    which leaves c1 at the FMU's default (25 N s/m^2: it must not act there): the closed form of
+    m x'' + F_c sgn(x') + k x = 0 released from rest at x0. Each half cycle is a harmonic arc about +-F_c/k, so successive extrema fall by 2 F_c/k in size (4 F_c/k
     per cycle: linearly, not geometrically as under viscous damping), and the motion stops at the
     first extremum inside |x| <= F_c/k, where the spring cannot overcome the friction.
     Tolerance: the peaks are read from samples dt = 5e-4 s apart, within a dt^2/2 <= 7e-7 m of the
@@ -193,8 +195,7 @@ def test_coulomb_friction_drops_each_peak_by_twice_the_friction_over_the_stiffne
     the integration (rtol 1e-10; measured 1.1e-8 m). After the stop the tanh's steep slope (a damping F_c/coulomb_v)
     lets the payload creep towards the balance, never beyond F_c/k, a thousand times slower than it swung."""
     F_c, v_s, x0, dt = 2.0, 1e-4, 0.1, 5e-4
-    inst = H.cs(LINEAR | dict(slack=False, damping=2, c0=0.0, c1=0.0, c2=0.0, c_coulomb=F_c, coulomb_v=v_s,
-                              x0=x0, v0=0.0, rtol=1e-10))
+    inst = H.cs(LINEAR | law | dict(slack=False, c0=0.0, c_coulomb=F_c, coulomb_v=v_s, x0=x0, v0=0.0, rtol=1e-10))
     r = H.run_cs(inst, H.grid(4.0, dt), ["displacement", "velocity"])
     inst.free()
     x, v = r["displacement"], r["velocity"]

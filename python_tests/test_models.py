@@ -12,7 +12,7 @@ from tether.models import (EFFECTS, PRESETS, ModelError, ModelSpec, ParamsError,
 
 # FMU enumeration values, written out independently of the package (modelDescription.xml)
 LINEAR, CUBIC = 1, 2
-VISCOUS, DISPLACEMENT = 1, 2
+VISCOUS, DISPLACEMENT, COULOMB = 1, 2, 3
 NONE, KAWABATA, BOUCWEN = 1, 2, 3
 PAYLOAD, LOAD = 2, 3
 
@@ -56,6 +56,9 @@ def test_linear_is_exactly_the_trace_format_baseline():
     ("linear+nonlinear_damping", sw(LINEAR, DISPLACEMENT, NONE), ["nonlinear_damping"]),
     ("linear+creep", sw(LINEAR, VISCOUS, NONE, creep=True), ["creep"]),
     ("linear+slack", sw(LINEAR, VISCOUS, NONE, slack=True), ["slack"]),
+    ("linear+coulomb", sw(LINEAR, COULOMB, NONE), ["nonlinear_damping"]),
+    ("cubic+boucwen+coulomb+slack", sw(CUBIC, COULOMB, BOUCWEN, slack=True),
+     ["nonlinear_stiffness", "hysteresis", "nonlinear_damping", "slack"]),
     ("simplified+slack", sw(CUBIC, DISPLACEMENT, NONE, slack=True), ["nonlinear_stiffness", "nonlinear_damping", "slack"]),
     ("full+creep+slack", sw(CUBIC, DISPLACEMENT, BOUCWEN, True, True), list(EFFECTS)),
     ("cubic+boucwen", sw(CUBIC, VISCOUS, BOUCWEN), ["nonlinear_stiffness", "hysteresis"]),
@@ -81,7 +84,8 @@ def test_vocabulary_names_equal_law_names():
 @pytest.mark.parametrize("text", [
     "linear", "cubic", "simplified", "kawabata", "full", "linear+boucwen", "linear+slack", "cubic+boucwen",
     "linear+nonlinear_damping", "kawabata+creep+slack", "full+creep+slack", "simplified+slack",
-    "linear+boucwen+nonlinear_damping", "slack+nonlinear_stiffness+creep",
+    "linear+boucwen+nonlinear_damping", "slack+nonlinear_stiffness+creep", "linear+coulomb", "cubic+coulomb+slack",
+    "cubic+boucwen+coulomb",
 ])
 def test_canonical_round_trip(text):
     spec = parse_model(text)
@@ -103,6 +107,7 @@ def test_canonical_uses_largest_preset():
     ("simplified", ["a1", "a2", "a3", "pow_F", "pow_eps", "pow_n", "c0", "c1", "c2", "c_table_dx"]
      + [f"c_table_{k}" for k in range(1, 7)] + ["c_drag", "c_coulomb", "coulomb_v"]),
     ("linear+slack", ["EA", "c0"]),
+    ("linear+coulomb", ["EA", "c0", "c_coulomb", "coulomb_v"]),
 ])
 def test_parameters_exact(text, params):
     assert parse_model(text).parameters == params
@@ -126,7 +131,7 @@ def test_parameters_exist_in_the_fmu(fmu_path):
 
     fmu_params = model_description().parameters
     for name in PRESETS:
-        for text in (name, "linear+boucwen+creep"):
+        for text in (name, "linear+boucwen+creep", "linear+coulomb"):
             for p in parse_model(text).parameters:
                 assert p in fmu_params, p
 
@@ -149,6 +154,8 @@ def test_rig_follows_experiment(experiment, rig):
     ("cubic+nonlinear_stiffness", ("'nonlinear_stiffness' is already in the model (from 'cubic')",)),
     ("linear+slack+slack", ("'slack' is already in the model",)),
     ("full+nonlinear_damping", ("'nonlinear_damping' is already in the model (from 'full')",)),
+    ("simplified+coulomb", ("'coulomb' conflicts with 'simplified'", "damping")),
+    ("linear+nonlinear_damping+coulomb", ("'coulomb' conflicts with 'nonlinear_damping'",)),
     ("kawabata+cubic", ("'kawabata' conflicts with 'cubic'", "replace the elastic law")),
     ("cubic+kawabata", ("'kawabata' conflicts with 'cubic'",)),
     ("kawabata+nonlinear_stiffness", ("conflicts", "nonlinear_stiffness")),

@@ -52,6 +52,11 @@ static double damping_coulomb(const tether_params *p, double v)
 double damping_coefficient(const tether_params *p, double x, double v)
 {
     if (p->damping == DAMPING_VISCOUS) return p->c0;
+    if (p->damping == DAMPING_COULOMB) {
+        /* viscous plus dry friction alone: the law of a damping that falls with amplitude */
+        const double c = p->c0 + damping_coulomb(p, v);
+        return c > 0.0 ? c : 0.0;
+    }
     const double ax = fabs(x);
     /* c_drag |v|: the damping force c_drag |v| v of a body moving through air or water, which
      * also damps large amplitudes more than small ones, but through the velocity */

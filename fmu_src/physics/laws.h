@@ -27,9 +27,10 @@ double elastic_compression_limit(const tether_params *p);
 int elastic_strain_below(const tether_params *p, double T, double rising_limit, double *eps);
 
 /* ---- damping (paper: dynamical property) -------------------------------------------------- */
-/* Damping coefficient: c0 (viscous) or c(x) = c0 + c1 |x| + c2 x^2 + table(|x|) + c_drag |v|
+/* Damping coefficient: c0 (viscous), c(x) = c0 + c1 |x| + c2 x^2 + table(|x|) + c_drag |v|
  * + c_coulomb tanh(v / coulomb_v) / v (displacement-dependent, with an optional velocity-quadratic
- * drag and an optional Coulomb friction force); v is the elongation rate. */
+ * drag and an optional Coulomb friction force), or c0 + c_coulomb tanh(v / coulomb_v) / v
+ * (coulomb: viscous plus dry friction alone); v is the elongation rate. */
 double damping_coefficient(const tether_params *p, double x, double v);
 
 /* ---- Kawabata loading/unloading hysteresis ------------------------------------------------ */

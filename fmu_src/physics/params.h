@@ -7,7 +7,7 @@
 
 typedef enum { RIG_ELEMENT = 1, RIG_PAYLOAD = 2, RIG_LOAD = 3 } tether_rig;
 typedef enum { STIFFNESS_LINEAR = 1, STIFFNESS_CUBIC = 2, STIFFNESS_EXPONENTIAL = 3 } stiffness_law;
-typedef enum { DAMPING_VISCOUS = 1, DAMPING_DISPLACEMENT = 2 } damping_law;
+typedef enum { DAMPING_VISCOUS = 1, DAMPING_DISPLACEMENT = 2, DAMPING_COULOMB = 3 } damping_law;
 typedef enum { HYSTERESIS_NONE = 1, HYSTERESIS_KAWABATA = 2, HYSTERESIS_BOUCWEN = 3, HYSTERESIS_IWAN = 4 } hysteresis_law;
 typedef enum { CREEP_KELVIN_SLIP = 1, CREEP_PRIMARY = 2 } creep_law_choice;
 typedef enum { INTEGRATOR_AUTO = 1, INTEGRATOR_BDF = 2, INTEGRATOR_ADAMS = 3 } integrator_choice;

@@ -237,7 +237,7 @@ int tether_check(const tether_model *M, char *msg, size_t len)
 #define FAIL(...) do { snprintf(msg, len, __VA_ARGS__); return -1; } while (0)
     if (p->rig < RIG_ELEMENT || p->rig > RIG_LOAD) FAIL("rig = %d: expected 1 (element), 2 (payload) or 3 (load)", p->rig);
     if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_EXPONENTIAL) FAIL("stiffness = %d: expected 1 (linear), 2 (cubic) or 3 (exponential)", p->stiffness);
-    if (p->damping < DAMPING_VISCOUS || p->damping > DAMPING_DISPLACEMENT) FAIL("damping = %d: expected 1 (viscous) or 2 (displacement)", p->damping);
+    if (p->damping < DAMPING_VISCOUS || p->damping > DAMPING_COULOMB) FAIL("damping = %d: expected 1 (viscous), 2 (displacement) or 3 (coulomb)", p->damping);
     if (p->hysteresis < HYSTERESIS_NONE || p->hysteresis > HYSTERESIS_IWAN) FAIL("hysteresis = %d: expected 1 (none), 2 (kawabata), 3 (boucwen) or 4 (iwan)", p->hysteresis);
     if (p->creep_law < CREEP_KELVIN_SLIP || p->creep_law > CREEP_PRIMARY) FAIL("creep_law = %d: expected 1 (kelvin_slip) or 2 (primary)", p->creep_law);
     if (p->integrator < INTEGRATOR_AUTO || p->integrator > INTEGRATOR_ADAMS) FAIL("integrator = %d: expected 1 (auto), 2 (bdf) or 3 (adams)", p->integrator);

@@ -17,7 +17,9 @@ Terms after the preset are effect names of the trace format (``nonlinear_stiffne
 ``hysteresis`` = boucwen, ``nonlinear_damping`` = displacement-dependent damping, ``creep``,
 ``slack``) or specific laws (``cubic``, ``exponential``: T = exp_F (exp(eps/exp_eps) - 1), ``boucwen``,
 ``kawabata``, ``iwan``: inter-fibre friction, a bank of Jenkins elements beside the elastic law;
-``primary_creep``: creep with primary creep, a power or the logarithm of time, in the slip's place).
+``primary_creep``: creep with primary creep, a power or the logarithm of time, in the slip's place;
+``coulomb``: a damping of viscous and dry friction, c0 v + c_coulomb tanh(v / coulomb_v), in the
+place of c(x): it damps small amplitudes more than large ones).
 A string that starts with an effect or a law builds on ``linear``. Names are case-insensitive. Adding something the model
 already has, or two hysteresis laws, or the Kawabata law (which replaces the elastic law) together
 with the cubic or exponential law, is an error.
@@ -59,14 +61,14 @@ PARAMS_FORMAT = "tether-params/1"
 # values of the FMU's Integer switches (each listed in its description in modelDescription.xml)
 RIG = {"element": 1, "payload": 2, "load": 3}
 STIFFNESS = {"linear": 1, "cubic": 2, "exponential": 3}
-DAMPING = {"viscous": 1, "displacement": 2}
+DAMPING = {"viscous": 1, "displacement": 2, "coulomb": 3}
 HYSTERESIS = {"none": 1, "kawabata": 2, "boucwen": 3, "iwan": 4}
 CREEP_LAW = {"kelvin_slip": 1, "primary": 2}
 
 #: trace-format effect names, in report order
 EFFECTS = ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "creep", "slack")
 #: law names that may be added with '+'
-LAWS = ("cubic", "exponential", "boucwen", "kawabata", "iwan", "primary_creep")
+LAWS = ("cubic", "exponential", "boucwen", "kawabata", "iwan", "primary_creep", "coulomb")
 
 #: the structural switches: set by the model string, never by a parameter file
 SWITCHES = ("rig", "stiffness", "damping", "hysteresis", "creep", "slack", "creep_law")
@@ -83,6 +85,9 @@ STIFFNESS_PARAMETERS = {"linear": _PARAMS_LINEAR, "cubic": _PARAMS_CUBIC, "expon
 _PARAMS_VISCOUS = ("c0",)
 _PARAMS_DISPLACEMENT = ("c0", "c1", "c2", "c_table_dx", "c_table_1", "c_table_2", "c_table_3", "c_table_4",
                         "c_table_5", "c_table_6", "c_drag", "c_coulomb", "coulomb_v")
+_PARAMS_COULOMB = ("c0", "c_coulomb", "coulomb_v")
+#: each damping law's parameters
+DAMPING_PARAMETERS = {"viscous": _PARAMS_VISCOUS, "displacement": _PARAMS_DISPLACEMENT, "coulomb": _PARAMS_COULOMB}
 _PARAMS_BOUCWEN = ("bw_A", "bw_beta", "bw_gamma", "bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6", "z0")
 #: the Iwan bank: element stiffnesses, then their slip strains (IWAN_ELEMENTS of each)
 IWAN_ELEMENTS = 16
@@ -122,7 +127,7 @@ class ModelSpec:
     """The structural switches of one model (values named as in the FMU switches' descriptions)."""
 
     stiffness: str = "linear"      # linear | cubic | exponential
-    damping: str = "viscous"       # viscous | displacement
+    damping: str = "viscous"       # viscous | displacement | coulomb
     hysteresis: str = "none"       # none | kawabata | boucwen | iwan
     creep: bool = False
     slack: bool = False
@@ -146,7 +151,7 @@ class ModelSpec:
             have.add("nonlinear_stiffness")
         if self.hysteresis != "none":
             have.add("hysteresis")
-        if self.damping == "displacement":
+        if self.damping != "viscous":
             have.add("nonlinear_damping")
         if self.creep:
             have.add("creep")
@@ -162,7 +167,7 @@ class ModelSpec:
             names += _PARAMS_KAWABATA
         else:
             names += STIFFNESS_PARAMETERS[self.stiffness]
-        names += _PARAMS_DISPLACEMENT if self.damping == "displacement" else _PARAMS_VISCOUS
+        names += DAMPING_PARAMETERS[self.damping]
         if self.hysteresis == "boucwen":
             names += _PARAMS_BOUCWEN
         if self.hysteresis == "iwan":
@@ -188,7 +193,7 @@ class ModelSpec:
         if self.hysteresis != p.hysteresis:
             terms.append(self.hysteresis)
         if self.damping != p.damping:
-            terms.append("nonlinear_damping")
+            terms.append("coulomb" if self.damping == "coulomb" else "nonlinear_damping")
         if self.creep and not p.creep:
             terms.append("primary_creep" if self.creep_law == "primary" else "creep")
         if self.slack and not p.slack:
@@ -231,6 +236,7 @@ _TERMS: dict[str, tuple[str, Any]] = {
     "kawabata": ("hysteresis", "kawabata"),
     "iwan": ("hysteresis", "iwan"),
     "nonlinear_damping": ("damping", "displacement"),
+    "coulomb": ("damping", "coulomb"),
     "creep": ("creep", True),
     "primary_creep": ("creep", True),
     "slack": ("slack", True),

@@ -16,8 +16,8 @@ LOG_SCALED = {"EA", "a1", "exp_F", "exp_eps", "c_coulomb", "coulomb_v", "primary
               "kaw_F_ref", "kaw_eps_ref", "creep_J1", "creep_J2", "creep_J3",
               "creep_tau1", "creep_tau2", "creep_tau3", "slip_capacity0", "slip_rate", "slip_knee",
               "slip_load_half", "slip_load_exponent", "slip_regen_tau", "slip_limit", *IWAN_K}
-#: the elastic law and viscous damping: the first stage
-FIRST_STAGE = {"EA", "a1", "a2", "a3", "exp_F", "exp_eps", "c0", "kaw_LT", "kaw_RT", "kaw_F_ref", "kaw_residual", "kaw_eps_ref"}
+#: the elastic law and the damping's size (viscous, and a Coulomb friction where the law has one): the first stage
+FIRST_STAGE = {"EA", "a1", "a2", "a3", "exp_F", "exp_eps", "c0", "c_coulomb", "kaw_LT", "kaw_RT", "kaw_F_ref", "kaw_residual", "kaw_eps_ref"}
 #: the creep terms a fit frees by default, by creep law: the Kelvin compliances and the slip, or the
 #: primary creep's compliance, onset time and exponent of time
 CREEP_FREE_BY_LAW = {"kelvin_slip": ("creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate"),
@@ -71,7 +71,7 @@ def law_free_parameters(spec: ModelSpec, elastic: bool = True) -> list[str]:
     else:
         names += ["EA"]
     if payload:
-        names += ["c0"] + (["c1", "c2"] if spec.damping == "displacement" else [])
+        names += ["c0"] + {"displacement": ["c1", "c2"], "coulomb": ["c_coulomb", "coulomb_v"]}.get(spec.damping, [])
     if spec.hysteresis == "boucwen":
         names += ["bw_A", "bw_beta", "bw_gamma"]
     if spec.hysteresis == "iwan":
