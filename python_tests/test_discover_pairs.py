@@ -35,6 +35,9 @@ LINEAR = _fit("linear", (), 20.0, 3)
 CUBIC = _fit("cubic", ("nonlinear_stiffness",), 12.0, 4)
 DAMPED = _fit("linear+nonlinear_damping", ("nonlinear_damping",), 14.0, 6)
 PAIR = parse_model("cubic+nonlinear_damping", "forced").canonical
+#: the damping's other law beside the cubic: dry friction, which this record's damping is not
+FRICTION_PAIR = parse_model("cubic+coulomb", "forced").canonical
+FRICTION = _fit(FRICTION_PAIR, ("nonlinear_stiffness", "nonlinear_damping"), 11.5, 6)
 
 
 def _refused(fm: ModelFit, effect: str) -> CandidateResult:
@@ -99,12 +102,12 @@ def test_two_effects_refused_alone_are_added_as_a_pair_in_two_steps(monkeypatch)
     record (1.05 x, held-out 1.2 x against 25 x): both are added, the cubic's step and the damping's,
     from the same model before to the same model after, each with its pair's verdict."""
     pair = _fit("cubic+nonlinear_damping", ("nonlinear_stiffness", "nonlinear_damping"), 1.05, 7)
-    s, asked = _search(monkeypatch, {PAIR: pair}, {PAIR: 1.2})
+    s, asked = _search(monkeypatch, {PAIR: pair, FRICTION_PAIR: FRICTION}, {PAIR: 1.2, FRICTION_PAIR: 12.0})
     results = [_refused(CUBIC, "nonlinear_stiffness"), _refused(DAMPED, "nonlinear_damping")]
     monkeypatch.setattr(pairs, "candidates", lambda tr: ("nonlinear_stiffness", "nonlinear_damping"))
     assert s.pair_worth_trying(results)
     found = s.pair_of_refused(results)
-    assert asked == [PAIR]
+    assert asked == [PAIR, FRICTION_PAIR]           # the damping's laws beside the lead, each
     assert found is not None and [c.effect for c in found] == ["nonlinear_stiffness", "nonlinear_damping"]
     s.add_pair(found, results, _step(s), [])
     assert [st.effect for st in s.steps] == ["nonlinear_stiffness", "nonlinear_damping"]
@@ -119,7 +122,7 @@ def test_a_pair_that_fails_either_rule_adds_nothing(monkeypatch, pair_rms, held,
     """A pair whose second effect only rides on the first, or whose fit to the first part predicts
     the rest no better, is refused: no step, the model unchanged."""
     pair = _fit("cubic+nonlinear_damping", ("nonlinear_stiffness", "nonlinear_damping"), pair_rms, 7)
-    s, _ = _search(monkeypatch, {PAIR: pair}, {PAIR: held})
+    s, _ = _search(monkeypatch, {PAIR: pair, FRICTION_PAIR: FRICTION}, {PAIR: held, FRICTION_PAIR: 12.0})
     monkeypatch.setattr(pairs, "candidates", lambda tr: ("nonlinear_stiffness", "nonlinear_damping"))
     results = [_refused(CUBIC, "nonlinear_stiffness"), _refused(DAMPED, "nonlinear_damping")]
     assert s.pair_of_refused(results) is None, why

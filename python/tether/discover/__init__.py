@@ -28,8 +28,9 @@ fitted once more to the whole record; every error the account reports is the who
 
 Effects map to model terms as in :mod:`tether.models`: ``nonlinear_stiffness`` -> the cubic law,
 ``hysteresis`` -> a Bouc-Wen force (in load tests also the Kawabata branches, the better of the two),
-``nonlinear_damping`` -> c(x) = c0 + c1|x| + c2 x^2 (and a drag term where the record has one); where
-that polynomial closes only part of the gap, the candidate is fitted again with the tabulated c(x)
+``nonlinear_damping`` -> c(x) = c0 + c1|x| + c2 x^2 (and a drag term where the record has one), or
+beside it a viscous damping with dry (Coulomb) friction, the better of the two; where the
+polynomial closes only part of the gap, the candidate is fitted again with the tabulated c(x)
 (Criteria.damping_table_trigger) and competes with the better of the two,
 ``creep`` -> Kelvin cells and slip, ``slack`` -> no compression (no parameter of its own).
 

@@ -13,8 +13,8 @@ from ..models import EFFECTS, ModelSpec
 from .campaign_records import CampaignCandidate, CampaignFit, CampaignStep, in_noise_units, ranked_bic_change
 from .evidence import regimes
 from .fitting import ModelFit, _side_by_side
-from .judge import (_bic, _gap, _slack_acts, bic_change, closed_loops, full_data_verdict, heldout_verdict,
-                    leaves_unexplained, loops_verdict, slack_heldout_unasked)
+from .judge import (_bic, _gap, _slack_acts, bic_change, closed_loops, friction_verdict, full_data_verdict,
+                    heldout_verdict, leaves_unexplained, loops_verdict, model_speed, slack_heldout_unasked)
 from .laws import EFFECT, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, candidates, unrevealed
 from .starts import candidate_starts
 
@@ -314,7 +314,8 @@ class Steps:
     def judge(self, effect: str, f: CampaignFit) -> CampaignCandidate:
         """The one-record rule on the campaign's error in noise units (sigma = 1, effect_verdict); slack, which adds
         no parameter, only where it acts in some record (judge._slack_acts); hysteresis only where its
-        loops earn their place (judge.loops_verdict)."""
+        loops earn their place (judge.loops_verdict); a Coulomb friction only where it acts as dry
+        friction on some record (judge.friction_verdict)."""
         cur = self.cur
         dk = f.n_free - cur.n_free
         c = CampaignCandidate(effect=effect, fit=f, added_parameters=dk, bic_change=bic_change(cur, f, self.n),
@@ -332,6 +333,10 @@ class Steps:
             params, terms = closed_loops(f.spec, f.params)
             closed = self.as_fitted(f, params=params) if terms else f
             c.accepted, c.verdict = loops_verdict(1.0, closed.rms, f.rms, f.free, terms, self.n, c.verdict)
+        if c.accepted and effect == "nonlinear_damping" and f.spec.damping == "coulomb":
+            speeds = [model_speed(r.trace, self.record_fit(f, i).predicted) for i, r in enumerate(self.records)
+                      if r.trace.rig == "payload"]
+            c.accepted, c.verdict = friction_verdict(f.spec, f.params, speeds, c.verdict)
         return c
 
     def add(self, step: CampaignStep, win: CampaignCandidate) -> None:

@@ -1,7 +1,7 @@
 """The judge: every threshold of acceptance in one place (Criteria), the BIC change computed once
 (bic_change), and the rules side by side: an effect on the whole record (full_data_verdict) and on
 the held-out part (heldout_verdict), slack that must act (_slack_acts), hysteresis whose loops
-must earn their place (_loops_open), two effects added as a pair (pair_verdict), a shape
+must earn their place (_loops_open), a friction that must act as dry friction (friction_verdict), two effects added as a pair (pair_verdict), a shape
 (_shape_judged), a rival law (_law_judged), two laws that tie in a step (rival_tie), two optima of one model
 (optimum_judged: the Iwan bank's restart in rival.py, the rival branch), and when the damping
 table is tried (_partial_damping_gain).
@@ -18,7 +18,7 @@ import numpy as np
 from ..models import ModelSpec
 from ..traces import Trace
 from .fitting import ModelFit, predict
-from .laws import DAMPING_TABLE, LOOP_TERMS, RIVAL_LAWS, _law_of
+from .laws import DAMPING_TABLE, LOOP_TERMS, RIVAL_LAWS, _law_of, takes_damping_table
 from .records import CandidateResult
 
 
@@ -68,6 +68,11 @@ class Criteria:
     #: error >= 1.41 x noise): the residual then holds at least as much as the noise itself; a
     #: refined model that misses by less is not searched again for a further effect
     unexplained_gap: float = 1.0
+    #: a Coulomb friction acts as dry friction only where the model's speed (its 90th percentile
+    #: over the record) reaches this many times its smoothing coulomb_v (tanh(3) = 0.995: the force
+    #: at full size in the fast part of the motion); a smoothing wider than that is a viscous
+    #: damping that saturates with speed, which made up for another law's shape
+    friction_saturates: float = 3.0
     #: two laws of one effect tie in the step that names it where the loser's gap is at most this
     #: multiple of the winner's: fitted beside the effects named so far, they are not told apart
     #: there, and an effect named later may decide (branch.py carries the loser on)
@@ -130,7 +135,7 @@ def _partial_damping_gain(cr: "CandidateResult", sigma: float, rms_before: float
     """A polynomial damping candidate that closes part of the gap but is not accepted."""
     fm = cr.fit
     if (cr.effect != "nonlinear_damping" or cr.accepted or fm is None or not fm.ok
-            or set(DAMPING_TABLE) <= set(fm.shape)):
+            or not takes_damping_table(fm.spec) or set(DAMPING_TABLE) <= set(fm.shape)):
         return False
     g0, g1 = _gap(rms_before, sigma), _gap(fm.rms, sigma)
     return g0 > 0 and cr.bic_change < 0 and g1 <= CRITERIA.damping_table_trigger * g0
@@ -155,12 +160,38 @@ def _slack_acts(trace: Trace, spec: ModelSpec, fm: ModelFit, sigma: float, verdi
 def acts_as_itself(trace: Trace, spec: ModelSpec, fm: ModelFit, sigma: float, effect: str,
                    verdict: str) -> tuple[bool, str]:
     """An effect that passes on the error earns its place only by what it does: slack where it acts
-    (_slack_acts; ``spec`` the model before it), hysteresis where its loops do (_loops_open)."""
+    (_slack_acts; ``spec`` the model before it), hysteresis where its loops do (_loops_open), a
+    Coulomb friction where its force saturates (friction_verdict)."""
     if effect == "slack":
         return _slack_acts(trace, spec, fm, sigma, verdict)
     if effect == "hysteresis":
         return _loops_open(trace, fm, sigma, verdict)
+    if effect == "nonlinear_damping" and fm.spec.damping == "coulomb":
+        return friction_verdict(fm.spec, fm.params, [model_speed(trace, fm.predicted)], verdict)
     return True, verdict
+
+
+def model_speed(trace: Trace, predicted: np.ndarray | None) -> np.ndarray:
+    """The elongation rate of a payload record's fitted model (the derivative of its predicted
+    displacement; of the measured one where there is no prediction)."""
+    t = np.asarray(trace.time, float)
+    y = np.asarray(trace.measured if predicted is None or len(predicted) != len(t) else predicted, float)
+    return np.gradient(y, t) if len(t) > 1 else np.zeros(len(t))
+
+
+def friction_verdict(spec: ModelSpec, params: dict, speeds: Sequence[np.ndarray], verdict: str) -> tuple[bool, str]:
+    """A damping law with Coulomb friction earns its place only where the friction acts as dry
+    friction on some record (``speeds``: the model's speed along each): where its speed reaches
+    CRITERIA.friction_saturates times the smoothing coulomb_v."""
+    if spec.damping != "coulomb":
+        return True, verdict
+    v_s = float(params.get("coulomb_v", 0.0))
+    fast = max((float(np.percentile(np.abs(v), 90)) for v in speeds if len(v)), default=0.0)
+    if fast >= CRITERIA.friction_saturates * v_s:
+        return True, verdict
+    return False, (f"its friction does not act as dry friction: its sign is smoothed over coulomb_v = {v_s:.3g} m/s "
+                   f"and the model's speed reaches {fast:.3g} m/s (90th percentile), less than "
+                   f"{CRITERIA.friction_saturates:g} times that: a viscous damping that saturates with speed")
 
 
 def closed_loops(spec: ModelSpec, params: dict) -> tuple[dict, tuple]:

@@ -115,7 +115,10 @@ EFFECTS = (
     Effect("nonlinear_damping", "damping", "viscous", (
         # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
         Law("displacement", S.damping_starts, shapes=(("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
-                                     "c_table_6"),)),),
+                                     "c_table_6"),)),
+        # dry friction beside the viscous part: a damping that falls with amplitude, where c(x) and
+        # the drag grow with it
+        Law("coulomb", S.coulomb_starts)),
         {"load_unload": "a load test is quasi-static (no inertia, speeds near zero): damping, linear or not, "
                         "does not act in it",
          "creep": "a creep test holds its loads for hours and changes them between two samples: damping acts on "
@@ -241,7 +244,8 @@ def _floor(name: str, sc: _Scales) -> float:
             "bw_beta": 1e-2 / sc.amp, "bw_gamma": 1e-2 / sc.amp}.get(name, 0.0)
 
 
-_POSITIVE = ("EA", "a1", "exp_F", "exp_eps", "primary_J", "primary_tau", "c0", "c1", "c2", "c_drag", "bw_A",
+_POSITIVE = ("EA", "a1", "exp_F", "exp_eps", "primary_J", "primary_tau", "c0", "c1", "c2", "c_drag", "c_coulomb",
+             "coulomb_v", "bw_A",
              "kaw_F_ref", "creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate", "creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau",
              "slip_limit", "slip_load_half", *IWAN_K)
 
@@ -317,6 +321,12 @@ def _kawabata_split(spec: ModelSpec, effect: str) -> list[ModelSpec]:
 
 #: the damping table's knots (SHAPE_TERMS), tried as the law of a nonlinear-damping candidate
 DAMPING_TABLE = SHAPE_TERMS[("nonlinear_damping", "displacement")][0]
+
+
+def takes_damping_table(spec: ModelSpec) -> bool:
+    """Is the damping law of ``spec`` one whose shapes include the table of c(x) (c(x), not the
+    Coulomb friction)?"""
+    return DAMPING_TABLE in SHAPE_TERMS.get(("nonlinear_damping", _law_of(spec, "nonlinear_damping")), ())
 
 
 def _without(spec: ModelSpec, effect: str) -> ModelSpec:

@@ -272,6 +272,21 @@ def damping_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | N
     return starts
 
 
+#: the shares of the base model's viscous damping that the Coulomb starts hand to dry friction
+COULOMB_SHARES = (0.1, 0.5)
+
+
+def coulomb_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """Viscous plus dry friction from the base's c0, a share (COULOMB_SHARES) of it handed to the
+    friction (fit.payload_start.coulomb_start), at the record's amplitude and sample interval."""
+    from ..fit.payload_start import coulomb_start
+    c0 = base.params.get("c0", 1.0)
+    t = np.asarray(trace.time, float) if trace is not None else np.zeros(0)
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    omega = sc.omega if sc.omega > 0 else 1.0
+    return [{**base.params, **coulomb_start(c0, omega, sc.amp, dt, share)} for share in COULOMB_SHARES]
+
+
 def boucwen_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
     """First a start next to the base model (a weak, barely saturating force): the fit can only go
     down from the base model's error (starts far from it, e.g. a strong force that saturates early,
