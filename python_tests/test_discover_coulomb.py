@@ -74,12 +74,16 @@ def test_a_friction_smoothed_over_the_record_s_speeds_is_not_dry_friction(coulom
     speed = judge.model_speed(tr, None)
     fast = float(np.percentile(np.abs(speed), 90))
     limit = fast / judge.CRITERIA.friction_saturates
-    assert judge.friction_verdict(spec, {"coulomb_v": 0.9 * limit}, [speed], "ok") == (True, "ok")
-    ok, why = judge.friction_verdict(spec, {"coulomb_v": 1.1 * limit}, [speed], "ok")
+    assert judge.friction_verdict(spec, {"coulomb_v": 0.9 * limit}, lambda: [speed], "ok") == (True, "ok")
+    ok, why = judge.friction_verdict(spec, {"coulomb_v": 1.1 * limit}, lambda: [speed], "ok")
     assert not ok and "does not act as dry friction" in why and f"{1.1 * limit:.3g} m/s" in why
     # any record on which it saturates will do (a campaign); a law without friction is not asked
-    assert judge.friction_verdict(spec, {"coulomb_v": 1.1 * limit}, [0.5 * speed, 2.0 * speed], "ok")[0]
-    assert judge.friction_verdict(parse_model("linear+nonlinear_damping"), {}, [], "ok") == (True, "ok")
+    assert judge.friction_verdict(spec, {"coulomb_v": 1.1 * limit}, lambda: [0.5 * speed, 2.0 * speed], "ok")[0]
+    assert judge.friction_verdict(parse_model("linear+nonlinear_damping"), {}, _never, "ok") == (True, "ok")
+
+
+def _never():
+    raise AssertionError("the speeds of a law without friction were asked for")
 
 
 def test_only_the_c_x_law_takes_the_damping_table():

@@ -333,10 +333,10 @@ class Steps:
             params, terms = closed_loops(f.spec, f.params)
             closed = self.as_fitted(f, params=params) if terms else f
             c.accepted, c.verdict = loops_verdict(1.0, closed.rms, f.rms, f.free, terms, self.n, c.verdict)
-        if c.accepted and effect == "nonlinear_damping" and f.spec.damping == "coulomb":
-            speeds = [model_speed(r.trace, self.record_fit(f, i).predicted) for i, r in enumerate(self.records)
-                      if r.trace.rig == "payload"]
-            c.accepted, c.verdict = friction_verdict(f.spec, f.params, speeds, c.verdict)
+        if c.accepted and effect == "nonlinear_damping":
+            c.accepted, c.verdict = friction_verdict(f.spec, f.params, lambda: [
+                model_speed(r.trace, self.record_fit(f, i).predicted) for i, r in enumerate(self.records)
+                if r.trace.rig == "payload"], c.verdict)
         return c
 
     def add(self, step: CampaignStep, win: CampaignCandidate) -> None:

@@ -1,17 +1,18 @@
 """The judge: every threshold of acceptance in one place (Criteria), the BIC change computed once
 (bic_change), and the rules side by side: an effect on the whole record (full_data_verdict) and on
 the held-out part (heldout_verdict), slack that must act (_slack_acts), hysteresis whose loops
-must earn their place (_loops_open), a friction that must act as dry friction (friction_verdict), two effects added as a pair (pair_verdict), a shape
-(_shape_judged), a rival law (_law_judged), two laws that tie in a step (rival_tie), two optima of one model
-(optimum_judged: the Iwan bank's restart in rival.py, the rival branch), and when the damping
-table is tried (_partial_damping_gain).
+must earn their place (_loops_open), a friction that must act as dry friction (friction_verdict),
+two effects added as a pair (pair_verdict), a shape (_shape_judged), a rival law (_law_judged), two
+laws that tie in a step (rival_tie), two optima of one model (optimum_judged: the Iwan bank's
+restart in rival.py, the rival branch), and when the damping table is tried (_partial_damping_gain,
+table_to_try).
 docs/discovery.md, "The criteria, and why", tells the measurements behind each value."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -134,11 +135,16 @@ def optimum_judged(rms_before: float, rms: float, sigma: float) -> tuple[bool, s
 def _partial_damping_gain(cr: "CandidateResult", sigma: float, rms_before: float) -> bool:
     """A polynomial damping candidate that closes part of the gap but is not accepted."""
     fm = cr.fit
-    if (cr.effect != "nonlinear_damping" or cr.accepted or fm is None or not fm.ok
-            or not takes_damping_table(fm.spec) or set(DAMPING_TABLE) <= set(fm.shape)):
+    if cr.effect != "nonlinear_damping" or cr.accepted or fm is None or not fm.ok or not table_to_try(fm):
         return False
     g0, g1 = _gap(rms_before, sigma), _gap(fm.rms, sigma)
     return g0 > 0 and cr.bic_change < 0 and g1 <= CRITERIA.damping_table_trigger * g0
+
+
+def table_to_try(fm: ModelFit) -> bool:
+    """Whether the table of c(x) is still to try on ``fm``: its damping law takes the table
+    (laws.takes_damping_table: c(x), not the Coulomb friction) and the fit has not freed it yet."""
+    return takes_damping_table(fm.spec) and not set(DAMPING_TABLE) <= set(fm.shape)
 
 
 def _slack_acts(trace: Trace, spec: ModelSpec, fm: ModelFit, sigma: float, verdict: str) -> tuple[bool, str]:
@@ -166,8 +172,8 @@ def acts_as_itself(trace: Trace, spec: ModelSpec, fm: ModelFit, sigma: float, ef
         return _slack_acts(trace, spec, fm, sigma, verdict)
     if effect == "hysteresis":
         return _loops_open(trace, fm, sigma, verdict)
-    if effect == "nonlinear_damping" and fm.spec.damping == "coulomb":
-        return friction_verdict(fm.spec, fm.params, [model_speed(trace, fm.predicted)], verdict)
+    if effect == "nonlinear_damping":
+        return friction_verdict(fm.spec, fm.params, lambda: [model_speed(trace, fm.predicted)], verdict)
     return True, verdict
 
 
@@ -179,14 +185,16 @@ def model_speed(trace: Trace, predicted: np.ndarray | None) -> np.ndarray:
     return np.gradient(y, t) if len(t) > 1 else np.zeros(len(t))
 
 
-def friction_verdict(spec: ModelSpec, params: dict, speeds: Sequence[np.ndarray], verdict: str) -> tuple[bool, str]:
+def friction_verdict(spec: ModelSpec, params: dict, speeds: Callable[[], Sequence[np.ndarray]],
+                     verdict: str) -> tuple[bool, str]:
     """A damping law with Coulomb friction earns its place only where the friction acts as dry
-    friction on some record (``speeds``: the model's speed along each): where its speed reaches
-    CRITERIA.friction_saturates times the smoothing coulomb_v."""
+    friction on some record (``speeds()``: the model's speed along each, asked for only where the
+    law has the friction): where its speed reaches CRITERIA.friction_saturates times the smoothing
+    coulomb_v."""
     if spec.damping != "coulomb":
         return True, verdict
     v_s = float(params.get("coulomb_v", 0.0))
-    fast = max((float(np.percentile(np.abs(v), 90)) for v in speeds if len(v)), default=0.0)
+    fast = max((float(np.percentile(np.abs(v), 90)) for v in speeds() if len(v)), default=0.0)
     if fast >= CRITERIA.friction_saturates * v_s:
         return True, verdict
     return False, (f"its friction does not act as dry friction: its sign is smoothed over coulomb_v = {v_s:.3g} m/s "

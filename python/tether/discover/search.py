@@ -20,9 +20,8 @@ from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, 
                       SECOND_SEARCH_CAP_SHARE, work_ratio)
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
                     bic_change, full_data_verdict, heldout_verdict, leaves_unexplained, retested_beside_refinements,
-                    slack_heldout_unasked)
-from .laws import (_law_of, _models_for, _replaced, _without, candidates, takes_damping_table, DAMPING_TABLE, EFFECT,
-                   LAW_FIELD, RIVAL_LAWS)
+                    slack_heldout_unasked, table_to_try)
+from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
 from .plan import PLAN
 from ..noise import estimate_noise
 from .nuisance import data_start, nuisance_parameters, nuisance_start
@@ -397,8 +396,7 @@ class Search(PairStep, RivalBranch):
         # c(x), whose knots beyond that reach are held (_knots_unseen), is fitted and tested in its place
         refused = None if any(c.accepted for c in results) else next(
             (c for c in results if c.effect == "nonlinear_damping" and c.fit is not None and c.fit.ok
-             and takes_damping_table(c.fit.spec) and math.isfinite(c.heldout_rms)
-             and not set(DAMPING_TABLE) <= set(c.fit.shape)
+             and table_to_try(c.fit) and math.isfinite(c.heldout_rms)
              and full_data_verdict(sigma, cur.rms, c.rms, c.bic_change, c.added_parameters)[0]), None)
         if refused is not None:
             ct = self.table_candidate(refused)

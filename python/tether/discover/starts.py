@@ -281,10 +281,9 @@ def coulomb_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | N
     friction (fit.payload_start.coulomb_start), at the record's amplitude and sample interval."""
     from ..fit.payload_start import coulomb_start
     c0 = base.params.get("c0", 1.0)
-    t = np.asarray(trace.time, float) if trace is not None else np.zeros(0)
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    t = trace.time if trace is not None else ()
     omega = sc.omega if sc.omega > 0 else 1.0
-    return [{**base.params, **coulomb_start(c0, omega, sc.amp, dt, share)} for share in COULOMB_SHARES]
+    return [{**base.params, **coulomb_start(c0, omega, sc.amp, t, share)} for share in COULOMB_SHARES]
 
 
 def boucwen_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:

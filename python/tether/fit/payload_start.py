@@ -80,7 +80,7 @@ def payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
     est.update(_damping_start([float(v) for v in coef[:nd]], c_lin, k_lin, m, amp))
     if spec.damping == "coulomb":
         c0 = est["c0"] if est["c0"] > 0 else abs(c_lin)
-        est.update(coulomb_start(c0, est["_omega"], amp, float(np.median(np.diff(t))) if len(t) > 1 else 0.0, 0.5))
+        est.update(coulomb_start(c0, est["_omega"], amp, t, 0.5))
     est.update(_elastic_start([float(v) for v in coef[nd:]], spec, eq.cubic, k_lin, L0, m_w * g))
     est["_ee_rms"] = float(np.sqrt(np.mean(res ** 2)))
     return est
@@ -138,12 +138,14 @@ def _iwan_start(eq: _Equation, keep: np.ndarray, L0: float, slack_balance: float
 COULOMB_V_SHARE = (0.01, 0.3)
 
 
-def coulomb_start(c0: float, omega: float, amp: float, dt: float, share: float) -> dict:
+def coulomb_start(c0: float, omega: float, amp: float, time: np.ndarray, share: float) -> dict:
     """Viscous plus dry friction from a viscous damping ``c0``: the ``share`` of it handed to a
     friction that dissipates as much per cycle at the amplitude ``amp`` (a friction F dissipates
     4 F A per cycle, a viscous c pi c omega A^2); its sign smoothed over the speed one sample
-    interval ``dt`` sweeps at a reversal (amp omega^2 dt: a sharper sign the record cannot show),
-    within COULOMB_V_SHARE of the speed scale amp omega."""
+    interval of the record's ``time`` sweeps at a reversal (amp omega^2 dt: a sharper sign the
+    record cannot show), within COULOMB_V_SHARE of the speed scale amp omega."""
+    t = np.asarray(time, float)
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
     speed_share = min(max(omega * dt, COULOMB_V_SHARE[0]), COULOMB_V_SHARE[1])
     return {"c0": c0 * (1.0 - share), "c_coulomb": share * math.pi * c0 * omega * amp / 4.0,
             "coulomb_v": speed_share * amp * omega}
