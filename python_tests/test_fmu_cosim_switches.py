@@ -46,7 +46,7 @@ def test_switches_are_integers_whose_descriptions_list_their_values():
     """libcosim and ecos ignore Enumeration variables: every switch must be an Integer."""
     md = H.model_description()
     v = {x.name: x for x in md.modelVariables}
-    for name, values in {"rig": ["element", "payload", "load"], "stiffness": ["linear", "cubic", "exponential"],
+    for name, values in {"rig": ["element", "payload", "load"], "stiffness": ["linear", "cubic", "exponential", "bilinear"],
                          "damping": ["viscous", "displacement", "coulomb"],
                          "hysteresis": ["none", "kawabata", "boucwen", "iwan"],
                          "integrator": ["auto", "bdf", "adams"]}.items():

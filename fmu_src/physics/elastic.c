@@ -13,7 +13,14 @@
  * its own, not a term beside the cubic: its stiffness (F + exp_F) / exp_eps rises with the tension
  * without bound, where the cubic's turns over, and the two added together would be a law with five
  * coefficients that no record separates. It rises everywhere, and its inverse is closed:
- * eps = exp_eps ln(1 + T / exp_F), for T > -exp_F. */
+ * eps = exp_eps ln(1 + T / exp_F), for T > -exp_F.
+ *
+ * The bilinear law (stiffness = bilinear) is the toe of a braid: a soft stiffness toe_EA while the
+ * yarns straighten, up to the corner strain toe_eps, then the full stiffness EA, the corner rounded
+ * over the strain toe_width by a softplus: F = toe_EA eps + (EA - toe_EA) toe_width
+ * (softplus((eps - toe_eps) / toe_width) - softplus(-toe_eps / toe_width)), F(0) = 0. Its stiffness
+ * toe_EA + (EA - toe_EA) logistic((eps - toe_eps) / toe_width) lies between the two slopes, so with
+ * both positive it rises everywhere. */
 #include <float.h>
 #include <math.h>
 
@@ -39,9 +46,30 @@ static double exponential_argument(const tether_params *p, double eps)
     return y < EXPONENTIAL_MAX_ARGUMENT ? y : EXPONENTIAL_MAX_ARGUMENT;
 }
 
+/* log(1 + exp(y)) without overflow, and its derivative 1 / (1 + exp(-y)) */
+static double softplus(double y)
+{
+    return y > 0.0 ? y + log1p(exp(-y)) : log1p(exp(y));
+}
+
+static double logistic(double y)
+{
+    if (y >= 0.0) return 1.0 / (1.0 + exp(-y));
+    const double e = exp(y);
+    return e / (1.0 + e);
+}
+
+static double bilinear_tension(const tether_params *p, double eps)
+{
+    const double w = p->toe_width;
+    const double bend = softplus((eps - p->toe_eps) / w) - softplus(-p->toe_eps / w);
+    return p->toe_EA * eps + (p->EA - p->toe_EA) * w * bend;
+}
+
 double elastic_tension(const tether_params *p, double eps)
 {
     if (p->stiffness == STIFFNESS_LINEAR) return p->EA * eps;
+    if (p->stiffness == STIFFNESS_BILINEAR) return bilinear_tension(p, eps);
     if (p->stiffness == STIFFNESS_EXPONENTIAL) return p->exp_F * expm1(exponential_argument(p, eps));
     double F = eps * (p->a1 + eps * (p->a2 + eps * p->a3));
     if (has_power_term(p)) {
@@ -54,6 +82,8 @@ double elastic_tension(const tether_params *p, double eps)
 double elastic_stiffness(const tether_params *p, double eps)
 {
     if (p->stiffness == STIFFNESS_LINEAR) return p->EA;
+    if (p->stiffness == STIFFNESS_BILINEAR)
+        return p->toe_EA + (p->EA - p->toe_EA) * logistic((eps - p->toe_eps) / p->toe_width);
     if (p->stiffness == STIFFNESS_EXPONENTIAL) return p->exp_F / p->exp_eps * exp(exponential_argument(p, eps));
     double k = p->a1 + eps * (2.0 * p->a2 + 3.0 * eps * p->a3);
     if (has_power_term(p)) {
@@ -92,7 +122,7 @@ static void stiffness_roots(const tether_params *p, double *below, double *above
 {
     *below = -HUGE_VAL;
     *above = HUGE_VAL;
-    if (p->stiffness == STIFFNESS_LINEAR || p->stiffness == STIFFNESS_EXPONENTIAL) return;
+    if (p->stiffness != STIFFNESS_CUBIC) return;    /* the others rise everywhere */
     const double a = 3.0 * p->a3, b = 2.0 * p->a2, c = p->a1;
     if (c <= 0.0) { *below = *above = 0.0; return; }
     double r[2];
@@ -133,6 +163,34 @@ double elastic_compression_limit(const tether_params *p)
     return below;
 }
 
+/* The strain in [lo, hi] at which the law (rising there, F(lo) <= T <= F(hi)) carries T:
+ * Newton's steps, a bisection wherever one would leave the bracket */
+static double strain_in_bracket(const tether_params *p, double T, double lo, double hi)
+{
+    double e = 0.5 * (lo + hi);
+    for (int k = 0; k < 200; ++k) {
+        const double f = elastic_tension(p, e) - T;
+        if (f > 0.0) hi = e; else lo = e;
+        const double d = elastic_stiffness(p, e);
+        double next = d > 0.0 ? e - f / d : 0.5 * (lo + hi);
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        if (fabs(next - e) <= 1e-16 * (1.0 + fabs(e))) return next;
+        e = next;
+    }
+    return e;
+}
+
+/* The bilinear law's stiffness is at least the smaller slope k, and F(0) = 0: the strain at T
+ * lies between 0 and T / k */
+static int bilinear_strain(const tether_params *p, double T, double *eps)
+{
+    const double k = fmin(p->toe_EA, p->EA);
+    if (!(k > 0.0)) return -1;
+    const double far = T / k;
+    *eps = T > 0.0 ? strain_in_bracket(p, T, 0.0, far) : strain_in_bracket(p, T, far, 0.0);
+    return isfinite(*eps) ? 0 : -1;
+}
+
 int elastic_strain_below(const tether_params *p, double T, double rising_limit, double *eps)
 {
     if (T == 0.0) { *eps = 0.0; return 0; }
@@ -141,6 +199,7 @@ int elastic_strain_below(const tether_params *p, double T, double rising_limit, 
         *eps = T / p->EA;
         return 0;
     }
+    if (p->stiffness == STIFFNESS_BILINEAR) return bilinear_strain(p, T, eps);
     if (p->stiffness == STIFFNESS_EXPONENTIAL) {
         /* compression carries at most exp_F (the law tends to -exp_F) */
         if (!(p->exp_F > 0.0) || !(T > -p->exp_F)) return -1;
@@ -173,16 +232,6 @@ int elastic_strain_below(const tether_params *p, double T, double rising_limit, 
     } else if (!(elastic_tension(p, hi) >= T)) {
         return -1;
     }
-    double lo = 0.0, e = 0.5 * hi;
-    for (int k = 0; k < 200; ++k) {
-        const double f = elastic_tension(p, e) - T;
-        if (f > 0.0) hi = e; else lo = e;
-        const double d = elastic_stiffness(p, e);
-        double next = d > 0.0 ? e - f / d : 0.5 * (lo + hi);
-        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-        if (fabs(next - e) <= 1e-16 * (1.0 + fabs(e))) { e = next; break; }
-        e = next;
-    }
-    *eps = e;
+    *eps = strain_in_bracket(p, T, 0.0, hi);
     return 0;
 }

@@ -13,7 +13,9 @@
 /* Tension of the elastic law at strain eps, not clamped: linear EA eps, or the cubic
  * a1 eps + a2 eps^2 + a3 eps^3 (the same law for every length) plus the power term
  * pow_F sgn(eps) |eps / pow_eps|^pow_n (0 unless pow_F > 0), or the exponential
- * exp_F (exp(eps / exp_eps) - 1) (a stiffness exp_F / exp_eps at eps = 0 that grows with strain). */
+ * exp_F (exp(eps / exp_eps) - 1) (a stiffness exp_F / exp_eps at eps = 0 that grows with strain),
+ * or the bilinear toe_EA eps + (EA - toe_EA) toe_width (softplus((eps - toe_eps) / toe_width) -
+ * softplus(-toe_eps / toe_width)) (a toe of stiffness toe_EA, then EA beyond the strain toe_eps). */
 double elastic_tension(const tether_params *p, double eps);
 /* dF/deps of the elastic law. */
 double elastic_stiffness(const tether_params *p, double eps);

@@ -6,7 +6,7 @@
 #define KT_PHYSICS_PARAMS_H
 
 typedef enum { RIG_ELEMENT = 1, RIG_PAYLOAD = 2, RIG_LOAD = 3 } tether_rig;
-typedef enum { STIFFNESS_LINEAR = 1, STIFFNESS_CUBIC = 2, STIFFNESS_EXPONENTIAL = 3 } stiffness_law;
+typedef enum { STIFFNESS_LINEAR = 1, STIFFNESS_CUBIC = 2, STIFFNESS_EXPONENTIAL = 3, STIFFNESS_BILINEAR = 4 } stiffness_law;
 typedef enum { DAMPING_VISCOUS = 1, DAMPING_DISPLACEMENT = 2, DAMPING_COULOMB = 3 } damping_law;
 typedef enum { HYSTERESIS_NONE = 1, HYSTERESIS_KAWABATA = 2, HYSTERESIS_BOUCWEN = 3, HYSTERESIS_IWAN = 4 } hysteresis_law;
 typedef enum { CREEP_KELVIN_SLIP = 1, CREEP_PRIMARY = 2 } creep_law_choice;
@@ -25,10 +25,12 @@ typedef struct {
      * the inertia (tether.h: payload_carried_mass, payload_effective_mass) */
     double line_density;
     /* elastic law: linear EA, or the cubic a1..a3 plus a power term pow_F |eps/pow_eps|^pow_n, or
-     * the exponential exp_F (exp(eps/exp_eps) - 1) */
+     * the exponential exp_F (exp(eps/exp_eps) - 1), or the bilinear: a toe of stiffness toe_EA up
+     * to the strain toe_eps, then EA, the corner rounded over toe_width */
     double EA, a1, a2, a3;
     double pow_F, pow_eps, pow_n;
     double exp_F, exp_eps;
+    double toe_EA, toe_eps, toe_width;
     /* damping: c(x) = c0 + c1 |x| + c2 x^2 + a table over |x| (knots c_table_dx apart),
      * plus c_drag |v| (velocity-quadratic drag) and a Coulomb (dry-friction) force
      * c_coulomb tanh(v / coulomb_v) */

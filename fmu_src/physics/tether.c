@@ -145,6 +145,7 @@ static double stiffness_scale(const tether_model *M)
     const tether_params *p = &M->p;
     if (p->hysteresis == HYSTERESIS_KAWABATA) return p->kaw_F_ref / p->kaw_eps_ref;
     if (p->stiffness == STIFFNESS_EXPONENTIAL) return p->exp_F / p->exp_eps;
+    if (p->stiffness == STIFFNESS_BILINEAR) return fmin(p->toe_EA, p->EA);
     return p->stiffness == STIFFNESS_LINEAR ? p->EA : p->a1;
 }
 
@@ -236,7 +237,7 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     const tether_params *p = &M->p;
 #define FAIL(...) do { snprintf(msg, len, __VA_ARGS__); return -1; } while (0)
     if (p->rig < RIG_ELEMENT || p->rig > RIG_LOAD) FAIL("rig = %d: expected 1 (element), 2 (payload) or 3 (load)", p->rig);
-    if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_EXPONENTIAL) FAIL("stiffness = %d: expected 1 (linear), 2 (cubic) or 3 (exponential)", p->stiffness);
+    if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_BILINEAR) FAIL("stiffness = %d: expected 1 (linear), 2 (cubic), 3 (exponential) or 4 (bilinear)", p->stiffness);
     if (p->damping < DAMPING_VISCOUS || p->damping > DAMPING_COULOMB) FAIL("damping = %d: expected 1 (viscous), 2 (displacement) or 3 (coulomb)", p->damping);
     if (p->hysteresis < HYSTERESIS_NONE || p->hysteresis > HYSTERESIS_IWAN) FAIL("hysteresis = %d: expected 1 (none), 2 (kawabata), 3 (boucwen) or 4 (iwan)", p->hysteresis);
     if (p->creep_law < CREEP_KELVIN_SLIP || p->creep_law > CREEP_PRIMARY) FAIL("creep_law = %d: expected 1 (kelvin_slip) or 2 (primary)", p->creep_law);
@@ -249,6 +250,12 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (!(p->g >= 0.0)) FAIL("g = %g m/s2: expected g >= 0", p->g);
     if (!isfinite(p->last_reversal_beyond)) FAIL("last_reversal_beyond = %g m: expected a finite distance", p->last_reversal_beyond);
     if (p->stiffness == STIFFNESS_LINEAR && p->hysteresis != HYSTERESIS_KAWABATA && !(p->EA > 0.0)) FAIL("EA = %g N: the linear law needs EA > 0", p->EA);
+    if (p->stiffness == STIFFNESS_BILINEAR && p->hysteresis != HYSTERESIS_KAWABATA) {
+        if (!(p->EA > 0.0) || !isfinite(p->EA)) FAIL("EA = %g N: the bilinear law needs EA > 0 (its stiffness beyond the toe)", p->EA);
+        if (!(p->toe_EA > 0.0) || !isfinite(p->toe_EA)) FAIL("toe_EA = %g N: the bilinear law needs a toe stiffness toe_EA > 0", p->toe_EA);
+        if (!(p->toe_eps > 0.0) || !isfinite(p->toe_eps)) FAIL("toe_eps = %g: the bilinear law's corner strain must be positive", p->toe_eps);
+        if (!(p->toe_width > 0.0) || !isfinite(p->toe_width)) FAIL("toe_width = %g: the bilinear law's corner width must be positive", p->toe_width);
+    }
     if (p->stiffness == STIFFNESS_CUBIC && p->hysteresis != HYSTERESIS_KAWABATA && !(p->a1 > 0.0)) FAIL("a1 = %g N: the cubic law needs a1 > 0", p->a1);
     if (p->stiffness == STIFFNESS_EXPONENTIAL && p->hysteresis != HYSTERESIS_KAWABATA) {
         if (!(p->exp_F > 0.0) || !isfinite(p->exp_F)) FAIL("exp_F = %g N: the exponential law needs exp_F > 0", p->exp_F);

@@ -15,14 +15,15 @@ A model is a preset, optionally followed by effects or laws joined with ``+``::
 
 Terms after the preset are effect names of the trace format (``nonlinear_stiffness`` = cubic,
 ``hysteresis`` = boucwen, ``nonlinear_damping`` = displacement-dependent damping, ``creep``,
-``slack``) or specific laws (``cubic``, ``exponential``: T = exp_F (exp(eps/exp_eps) - 1), ``boucwen``,
+``slack``) or specific laws (``cubic``, ``exponential``: T = exp_F (exp(eps/exp_eps) - 1), ``bilinear``:
+a toe of stiffness toe_EA up to the strain toe_eps, then EA, the corner rounded over toe_width, ``boucwen``,
 ``kawabata``, ``iwan``: inter-fibre friction, a bank of Jenkins elements beside the elastic law;
 ``primary_creep``: creep with primary creep, a power or the logarithm of time, in the slip's place;
 ``coulomb``: a damping of viscous and dry friction, c0 v + c_coulomb tanh(v / coulomb_v), in the
 place of c(x): it damps small amplitudes more than large ones).
 A string that starts with an effect or a law builds on ``linear``. Names are case-insensitive. Adding something the model
 already has, or two hysteresis laws, or the Kawabata law (which replaces the elastic law) together
-with the cubic or exponential law, is an error.
+with another elastic law than the linear one, is an error.
 
 Every model switches slack and creep off unless they are added: the baseline of the trace format
 is a linear spring that also carries compression.
@@ -60,7 +61,7 @@ PARAMS_FORMAT = "tether-params/1"
 # ---------------------------------------------------------------------------------------------
 # values of the FMU's Integer switches (each listed in its description in modelDescription.xml)
 RIG = {"element": 1, "payload": 2, "load": 3}
-STIFFNESS = {"linear": 1, "cubic": 2, "exponential": 3}
+STIFFNESS = {"linear": 1, "cubic": 2, "exponential": 3, "bilinear": 4}
 DAMPING = {"viscous": 1, "displacement": 2, "coulomb": 3}
 HYSTERESIS = {"none": 1, "kawabata": 2, "boucwen": 3, "iwan": 4}
 CREEP_LAW = {"kelvin_slip": 1, "primary": 2}
@@ -68,7 +69,7 @@ CREEP_LAW = {"kelvin_slip": 1, "primary": 2}
 #: trace-format effect names, in report order
 EFFECTS = ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "creep", "slack")
 #: law names that may be added with '+'
-LAWS = ("cubic", "exponential", "boucwen", "kawabata", "iwan", "primary_creep", "coulomb")
+LAWS = ("cubic", "exponential", "bilinear", "boucwen", "kawabata", "iwan", "primary_creep", "coulomb")
 
 #: the structural switches: set by the model string, never by a parameter file
 SWITCHES = ("rig", "stiffness", "damping", "hysteresis", "creep", "slack", "creep_law")
@@ -80,8 +81,10 @@ EXPERIMENT_RIG = {"free_vibration": "payload", "forced": "payload", "load_unload
 _PARAMS_LINEAR = ("EA",)
 _PARAMS_CUBIC = ("a1", "a2", "a3", "pow_F", "pow_eps", "pow_n")
 _PARAMS_EXPONENTIAL = ("exp_F", "exp_eps")
+_PARAMS_BILINEAR = ("EA", "toe_EA", "toe_eps", "toe_width")
 #: each elastic law's parameters
-STIFFNESS_PARAMETERS = {"linear": _PARAMS_LINEAR, "cubic": _PARAMS_CUBIC, "exponential": _PARAMS_EXPONENTIAL}
+STIFFNESS_PARAMETERS = {"linear": _PARAMS_LINEAR, "cubic": _PARAMS_CUBIC, "exponential": _PARAMS_EXPONENTIAL,
+                        "bilinear": _PARAMS_BILINEAR}
 _PARAMS_VISCOUS = ("c0",)
 _PARAMS_DISPLACEMENT = ("c0", "c1", "c2", "c_table_dx", "c_table_1", "c_table_2", "c_table_3", "c_table_4",
                         "c_table_5", "c_table_6", "c_drag", "c_coulomb", "coulomb_v")
@@ -100,11 +103,11 @@ IWAN_K_FIT = IWAN_K[:IWAN_FIT_ELEMENTS]
 IWAN_EPS_FIT = IWAN_EPS[:IWAN_FIT_ELEMENTS]
 _PARAMS_IWAN = IWAN_K + IWAN_EPS
 _PARAMS_KAWABATA = ("kaw_LT", "kaw_RT", "kaw_eps_ref", "kaw_F_ref", "kaw_residual")
-#: the elastic law's terms (linear, cubic or exponential), and each hysteresis law's
-ELASTIC_PARAMETERS = _PARAMS_LINEAR + _PARAMS_CUBIC + _PARAMS_EXPONENTIAL
+#: the elastic law's terms (linear, cubic, exponential or bilinear), and each hysteresis law's
+ELASTIC_PARAMETERS = _PARAMS_LINEAR + _PARAMS_CUBIC + _PARAMS_EXPONENTIAL + _PARAMS_BILINEAR[1:]
 #: the elastic law's terms that are forces (N): a stiffer or softer law scales these, not the power
-#: term's reference strain and exponent nor the exponential's strain scale
-ELASTIC_FORCES = ("EA", "a1", "a2", "a3", "pow_F", "exp_F")
+#: term's reference strain and exponent nor the exponential's strain scale nor the toe's strains
+ELASTIC_FORCES = ("EA", "a1", "a2", "a3", "pow_F", "exp_F", "toe_EA")
 HYSTERESIS_PARAMETERS = {"kawabata": _PARAMS_KAWABATA, "boucwen": _PARAMS_BOUCWEN, "iwan": _PARAMS_IWAN}
 _PARAMS_KELVIN = ("creep_J1", "creep_tau1", "creep_J2", "creep_tau2", "creep_J3", "creep_tau3")
 _PARAMS_SLIP = ("slip_capacity0", "slip_rate", "slip_knee", "slip_load_half", "slip_load_exponent",
@@ -126,7 +129,7 @@ class ParamsError(ValueError):
 class ModelSpec:
     """The structural switches of one model (values named as in the FMU switches' descriptions)."""
 
-    stiffness: str = "linear"      # linear | cubic | exponential
+    stiffness: str = "linear"      # linear | cubic | exponential | bilinear
     damping: str = "viscous"       # viscous | displacement | coulomb
     hysteresis: str = "none"       # none | kawabata | boucwen | iwan
     creep: bool = False
@@ -231,6 +234,7 @@ _TERMS: dict[str, tuple[str, Any]] = {
     "nonlinear_stiffness": ("stiffness", "cubic"),
     "cubic": ("stiffness", "cubic"),
     "exponential": ("stiffness", "exponential"),
+    "bilinear": ("stiffness", "bilinear"),
     "hysteresis": ("hysteresis", "boucwen"),
     "boucwen": ("hysteresis", "boucwen"),
     "kawabata": ("hysteresis", "kawabata"),

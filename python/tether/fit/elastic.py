@@ -1,5 +1,5 @@
-"""The elastic laws as the fit's starts use them: the cubic (with its power term) and the
-exponential law, the tension at a strain, the strain at a tension, and the coefficients from the
+"""The elastic laws as the fit's starts use them: the cubic (with its power term), the
+exponential and the bilinear law, the tension at a strain, the strain at a tension, and the coefficients from the
 Taylor coefficients about a balance or from a load-elongation curve."""
 
 from __future__ import annotations
@@ -73,11 +73,49 @@ def exponential_tension(params: Mapping[str, float], eps):
     return float(params["exp_F"]) * np.expm1(np.asarray(eps, float) / float(params["exp_eps"]))
 
 
+def _softplus(y):
+    return np.logaddexp(0.0, y)
+
+
+def toe_bend(eps, toe_eps: float, toe_width: float):
+    """The bilinear law's bend, toe_width (softplus((eps - toe_eps)/toe_width) - softplus(-toe_eps/
+    toe_width)): 0 in the toe, eps - toe_eps + its value at 0 beyond (F = toe_EA (eps - bend) +
+    EA bend)."""
+    e = np.asarray(eps, float)
+    return toe_width * (_softplus((e - toe_eps) / toe_width) - _softplus(-toe_eps / toe_width))
+
+
+def bilinear_tension(params: Mapping[str, float], eps):
+    """Tension of the FMU's bilinear elastic law at strain ``eps``: a toe of stiffness toe_EA up to
+    toe_eps, then EA, the corner rounded over toe_width (physics/elastic.c)."""
+    e = np.asarray(eps, float)
+    b = toe_bend(e, float(params["toe_eps"]), float(params["toe_width"]))
+    return float(params["toe_EA"]) * (e - b) + float(params["EA"]) * b
+
+
+def _bisection_inverse(tension, params: Mapping[str, float], span: float):
+    """The strain at tension T of a law that rises everywhere with a slope of at least T / span per
+    unit T (|eps| <= |T| span): bisection, vectorised."""
+    def inv(T):
+        T = np.asarray(T, float)
+        lo = np.minimum(T * span, 0.0)
+        hi = np.maximum(T * span, 0.0)
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            below = tension(params, mid) < T
+            lo = np.where(below, mid, lo)
+            hi = np.where(below, hi, mid)
+        return 0.5 * (lo + hi)
+    return inv
+
+
 def elastic_inverse(stiffness: str, params: Mapping[str, float]):
-    """The strain at tension T of the elastic law ``stiffness`` (linear, cubic or exponential) with
-    ``params``, as a function of T (on the law's rising branch)."""
+    """The strain at tension T of the elastic law ``stiffness`` (linear, cubic, exponential or
+    bilinear) with ``params``, as a function of T (on the law's rising branch)."""
     if stiffness == "cubic":
         return cubic_inverse(params)
+    if stiffness == "bilinear":
+        return _bisection_inverse(bilinear_tension, params, 1.0 / min(float(params["toe_EA"]), float(params["EA"])))
     if stiffness == "exponential":
         F, e = float(params["exp_F"]), float(params["exp_eps"])
         return lambda T: e * np.log1p(np.asarray(T, float) / F)
@@ -130,3 +168,74 @@ def exponential_from_curve(eps: np.ndarray, T: np.ndarray) -> dict | None:
     log_e = 0.5 * (a + b)
     F = fit(log_e)[1]
     return {"exp_F": F, "exp_eps": math.exp(log_e)} if F > 0 else None
+
+
+#: the bilinear law's corner from a curve: toe_width on a geometric grid of these fractions of the
+#: strain range, toe_eps on BILINEAR_CORNERS points across it
+BILINEAR_WIDTHS = (0.02, 0.05, 0.1, 0.2, 0.4)
+BILINEAR_CORNERS = 41
+
+
+def _toe_slopes(u: np.ndarray, R: np.ndarray, corner: float, width: float, intercept: bool):
+    """Least squares of R = toe_EA (u - b) + EA b (+ r0 with ``intercept``), b the bend of a corner
+    at ``corner``: (cost, toe_EA, EA, r0), None unless both slopes are positive."""
+    b = toe_bend(u, corner, width)
+    A = np.column_stack([u - b, b] + ([np.ones_like(u)] if intercept else []))
+    coef = np.linalg.lstsq(A, R, rcond=None)[0]
+    if not (coef[0] > 0 and coef[1] > 0):
+        return None
+    return float(np.sum((A @ coef - R) ** 2)), float(coef[0]), float(coef[1]), float(coef[2]) if intercept else 0.0
+
+
+def bilinear_from_curve(eps: np.ndarray, T: np.ndarray, balance: float | None = None) -> dict | None:
+    """EA, toe_EA, toe_eps, toe_width from tension samples ``T`` along the strain ``eps`` by least
+    squares: for a corner (toe_eps, toe_width) the tension is linear in the two slopes; the corner
+    is the best on a grid (BILINEAR_CORNERS strains across the samples' range, BILINEAR_WIDTHS of
+    it). ``balance``: the strain is known only from a balance that carries the tension
+    ``balance`` (a payload record: eps is the displacement over L0 and T the restoring force, with
+    an intercept), and the law's zero is where the fitted curve carries -balance. None without six
+    samples over two strains, or where no corner gives two positive slopes and a toe that ends
+    above zero strain."""
+    u = np.asarray(eps, float)
+    R = np.asarray(T, float)
+    ok = np.isfinite(u) & np.isfinite(R)
+    u, R = u[ok], R[ok]
+    if u.size < 6 or not np.ptp(u) > 0:
+        return None
+    span = float(np.ptp(u))
+    best = None
+    for corner in np.linspace(u.min(), u.max(), BILINEAR_CORNERS):
+        for f in BILINEAR_WIDTHS:
+            fit = _toe_slopes(u, R, corner, f * span, balance is not None)
+            if fit is not None and (best is None or fit[0] < best[0]):
+                best = (*fit, corner, f * span)
+    if best is None:
+        return None
+    _, k_toe, EA, r0, corner, width = best
+    law = {"EA": EA, "toe_EA": k_toe, "toe_eps": corner, "toe_width": width}
+    if balance is not None:
+        # F(e_b + u) = balance + r0 + G(u), G the law with its corner at u = corner: F's zero is
+        # at G = -(balance + r0), and its corner that far above it
+        law["toe_eps"] = corner - float(elastic_inverse("bilinear", law)(-(float(balance) + r0)))
+    return law if law["toe_eps"] > 0 else None
+
+
+def bilinear_near_linear(EA: float | None, strain: float) -> dict:
+    """A bilinear law near the linear one, where a record shows no toe: a toe of half the stiffness
+    up to a tenth of the record's ``strain``; {} without a positive EA and strain."""
+    if not (EA and EA > 0 and strain > 0):
+        return {}
+    return {"EA": EA, "toe_EA": 0.5 * EA, "toe_eps": 0.1 * strain, "toe_width": 0.02 * strain}
+
+
+def near_linear_law(stiffness: str, EA: float, strain: float) -> dict:
+    """The elastic law ``stiffness`` near the linear law EA at the record's ``strain``: the cubic
+    with a2 = a3 = 0; the exponential whose strain scale is ten times it (stiffness EA at zero
+    strain, 10 % more there); the bilinear's short soft toe (bilinear_near_linear)."""
+    if stiffness == "cubic":
+        return {"a1": EA, "a2": 0.0, "a3": 0.0}
+    if stiffness == "exponential":
+        return {"exp_F": 10.0 * strain * EA, "exp_eps": 10.0 * strain}
+    if stiffness == "bilinear":
+        return bilinear_near_linear(EA, strain)
+    return {"EA": EA}

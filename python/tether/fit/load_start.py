@@ -12,7 +12,7 @@ import numpy as np
 from ..models import ModelSpec
 from ..traces import Trace
 from .creep_start import creep_estimate
-from .elastic import exponential_from_curve
+from .elastic import bilinear_from_curve, bilinear_near_linear, exponential_from_curve
 from .equation_error import scaled_lstsq
 from .iwan_bank import load_iwan_estimate
 
@@ -31,7 +31,7 @@ def load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> d
 
 
 def _static_law(traces: Sequence[Trace], spec: ModelSpec) -> dict:
-    """EA (and the cubic's a1..a3, or the exponential's exp_F, exp_eps) by least squares of tension
+    """EA (and the cubic's a1..a3, the exponential's exp_F, exp_eps or the bilinear's toe) by least squares of tension
     against strain over the load-unload tests' loaded samples; a creep test alone informs only EA
     (two load levels)."""
     est: dict = {}
@@ -65,6 +65,8 @@ def _static_law(traces: Sequence[Trace], spec: ModelSpec) -> dict:
                 est.update(a1=float(coef[0]), a2=float(coef[1]), a3=float(coef[2]))
         if spec.stiffness == "exponential" and static:
             est.update(exponential_from_curve(eps, T) or {})
+        if spec.stiffness == "bilinear" and static:
+            est.update(bilinear_from_curve(eps, T) or bilinear_near_linear(est.get("EA"), float(np.max(eps))))
     return est
 
 

@@ -12,12 +12,12 @@ from ..models import IWAN_K, IWAN_K_FIT, ModelSpec, TRACE_PARAMETERS, SWITCHES, 
 from .result import FitError
 
 #: fitted on a log scale (one sign; the engine's steps are relative)
-LOG_SCALED = {"EA", "a1", "exp_F", "exp_eps", "c_coulomb", "coulomb_v", "primary_J", "primary_tau", "c0", "bw_A",
+LOG_SCALED = {"EA", "a1", "exp_F", "exp_eps", "toe_EA", "toe_eps", "toe_width", "c_coulomb", "coulomb_v", "primary_J", "primary_tau", "c0", "bw_A",
               "kaw_F_ref", "kaw_eps_ref", "creep_J1", "creep_J2", "creep_J3",
               "creep_tau1", "creep_tau2", "creep_tau3", "slip_capacity0", "slip_rate", "slip_knee",
               "slip_load_half", "slip_load_exponent", "slip_regen_tau", "slip_limit", *IWAN_K}
 #: the elastic law and the damping's size (viscous, and a Coulomb friction where the law has one): the first stage
-FIRST_STAGE = {"EA", "a1", "a2", "a3", "exp_F", "exp_eps", "c0", "c_coulomb", "kaw_LT", "kaw_RT", "kaw_F_ref", "kaw_residual", "kaw_eps_ref"}
+FIRST_STAGE = {"EA", "a1", "a2", "a3", "exp_F", "exp_eps", "toe_EA", "toe_eps", "toe_width", "c0", "c_coulomb", "kaw_LT", "kaw_RT", "kaw_F_ref", "kaw_residual", "kaw_eps_ref"}
 #: the creep terms a fit frees by default, by creep law: the Kelvin compliances and the slip, or the
 #: primary creep's compliance, onset time and exponent of time
 CREEP_FREE_BY_LAW = {"kelvin_slip": ("creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate"),
@@ -32,7 +32,7 @@ def model_spec(model) -> ModelSpec:
 def default_free_parameters(spec, experiment: str) -> list[str]:
     """The parameters the data of ``experiment`` can determine for ``spec``.
 
-    Elastic law: ``EA``; cubic ``a1 a2 a3``; exponential ``exp_F exp_eps``; Kawabata ``kaw_LT kaw_RT kaw_F_ref`` plus the residual
+    Elastic law: ``EA``; cubic ``a1 a2 a3``; exponential ``exp_F exp_eps``; bilinear ``EA toe_EA toe_eps toe_width``; Kawabata ``kaw_LT kaw_RT kaw_F_ref`` plus the residual
     strain ``kaw_residual`` where the load returns to zero (load tests; ``kaw_eps_ref`` stays fixed:
     the virgin curve through (eps_ref, F_ref) is one curve, a point on it is one number).
     Damping (payload rig only; quasi-static load tests do not see it): ``c0``, plus ``c1 c2`` for
@@ -68,6 +68,8 @@ def law_free_parameters(spec: ModelSpec, elastic: bool = True) -> list[str]:
         names += ["a1", "a2", "a3"]
     elif spec.stiffness == "exponential":
         names += ["exp_F", "exp_eps"]
+    elif spec.stiffness == "bilinear":
+        names += ["EA", "toe_EA", "toe_eps", "toe_width"]
     else:
         names += ["EA"]
     if payload:

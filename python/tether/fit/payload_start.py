@@ -13,7 +13,7 @@ import numpy as np
 from .. import identify_native as idn
 from ..models import ModelSpec
 from ..traces import Trace
-from .elastic import cubic_from_taylor, exponential_from_taylor
+from .elastic import bilinear_from_curve, bilinear_near_linear, cubic_from_taylor, exponential_from_taylor
 from .equation_error import damping_columns, restoring_columns, scaled_lstsq, taut_for_sure
 from .iwan_bank import IWAN_CAP, iwan_params, payload_iwan_bank
 from .kinematics import Kinematics, dominant_frequency, kinematics
@@ -82,8 +82,22 @@ def payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
         c0 = est["c0"] if est["c0"] > 0 else abs(c_lin)
         est.update(coulomb_start(c0, est["_omega"], amp, t, 0.5))
     est.update(_elastic_start([float(v) for v in coef[nd:]], spec, eq.cubic, k_lin, L0, m_w * g))
+    if spec.stiffness == "bilinear":
+        est.update(_bilinear_start(eq, z, keep, coef[:nd], L0, m_w * g, est["EA"]))
     est["_ee_rms"] = float(np.sqrt(np.mean(res ** 2)))
     return est
+
+
+def _bilinear_start(eq: _Equation, z, keep: np.ndarray, damping: np.ndarray, L0: float, weight: float,
+                    EA: float) -> dict:
+    """The bilinear law from the restoring force the equation error leaves (the right-hand side
+    less the damping and the hysteretic force) along the strain from the balance."""
+    K = eq.K
+    D = np.column_stack(damping_columns(K.x[keep], K.v[keep], eq.displacement))
+    R = eq.rhs[keep] - D @ np.asarray(damping, float) - (0.0 if z is None else z[keep])
+    u = K.x[keep] / L0
+    return (bilinear_from_curve(u, R, balance=weight)
+            or bilinear_near_linear(EA, weight / EA if weight > 0 else float(np.max(np.abs(u)))))
 
 
 def _bouc_wen_start(eq: _Equation, keep: np.ndarray, k_lin: float, amp: float) -> tuple[dict, np.ndarray | None]:
@@ -174,6 +188,8 @@ def _elastic_start(k: list[float], spec: ModelSpec, cubic: bool, k_lin: float, L
         e_w = weight / (k1 * L0) if weight > 0 else 1e-3
         return exponential_from_taylor(k1, k[1], L0, weight) or {"exp_F": 9.0 * max(weight, k1 * L0 * 1e-3),
                                                                   "exp_eps": 10.0 * e_w}
+    if spec.stiffness == "bilinear":
+        return {"EA": (k[0] if k[0] > 0 else k_lin) * L0}   # its toe: _bilinear_start
     if cubic:
         a = cubic_from_taylor(k[0], k[1], k[2], L0, weight)
         if a is None or not a["a1"] > 0:
