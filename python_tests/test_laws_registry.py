@@ -69,9 +69,9 @@ def test_every_law_in_the_registry_has_starts_and_a_model_adding_it_gets_them(fr
 
 def test_the_starts_depend_on_the_law_the_model_had_where_the_registry_says_so(free_vibration):
     """Bouc-Wen added to a model without hysteresis starts next to it (a force of 3 % of the record's
-    stiffness, the elastic law scaled by 0.97); Bouc-Wen under a cubic law in place of Kawabata's
-    branches (the nonlinear-stiffness candidate beside them) starts from a linear law of the
-    record's stiffness under a force of 10 % of it (Law.starts_from), and the estimate first."""
+    stiffness, the elastic law scaled by 0.97); Bouc-Wen under each elastic law in place of Kawabata's
+    branches (the nonlinear-stiffness candidates beside them) starts from the law near a linear law
+    of the record's stiffness under a force of 10 % of it (Law.starts_from), and the estimate first."""
     tr, sc, lin = free_vibration
     bw = parse_model("linear+boucwen", tr.experiment)
     first, second = starts.candidate_starts(lin, bw, sc)
@@ -79,11 +79,15 @@ def test_the_starts_depend_on_the_law_the_model_had_where_the_registry_says_so(f
     assert math.isclose(first["EA"], 0.97 * lin.params["EA"], rel_tol=1e-12)
     kaw = _base(ModelSpec(hysteresis="kawabata", rig="element"), {"kaw_F_ref": 1.0})
     split = laws._models_for(kaw.spec, "nonlinear_stiffness", types.SimpleNamespace(rig="element"))
-    assert [(m.stiffness, m.hysteresis) for m in split] == [("cubic", "boucwen")]
+    assert [(m.stiffness, m.hysteresis) for m in split] == [("cubic", "boucwen"), ("exponential", "boucwen"),
+                                                           ("bilinear", "boucwen")]
     assert laws.added_law(kaw.spec, split[0])[1] == "kawabata"
     est, w = starts.candidate_starts(kaw, split[0], sc)
     assert est is None and (w["a1"], w["a2"], w["a3"]) == (sc.ea, 0.0, 0.0)
     assert math.isclose(w["bw_A"], 0.1 * sc.k, rel_tol=1e-12)
+    # the bilinear law in Kawabata's place: a toe of half the stiffness up to a tenth of the strain
+    est, w = starts.candidate_starts(kaw, split[2], sc)
+    assert est is None and (w["EA"], w["toe_EA"], w["toe_eps"]) == (sc.ea, 0.5 * sc.ea, 0.1 * sc.eps)
 
 
 def _failed_fit(tr, sp, eff, starts_, *a, **kw) -> ModelFit:

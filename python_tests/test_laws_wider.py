@@ -319,7 +319,7 @@ def test_model_strings_name_primary_creep():
 
 def test_discovery_offers_the_exponential_law_in_load_tests_only_and_frees_each_creep_laws_terms(write_trace):
     """The registry (discover/laws.py): nonlinear stiffness in a load test has the exponential law
-    beside the cubic, a payload record the cubic alone; a primary creep law frees its own terms,
+    beside the cubic and the bilinear, a payload record the cubic and the bilinear; a primary creep law frees its own terms,
     not the slip's; WIDER_LAWS names the law each wider law stands in for."""
     from tether.discover.laws import WIDER_LAWS, _law_of, _models_for, _with_law, free_parameters
     from tether.models import parse_model
@@ -329,9 +329,13 @@ def test_discovery_offers_the_exponential_law_in_load_tests_only_and_frees_each_
                                   {"time": t, "load": 5.0 * t, "elongation": 1e-3 * t}))
     fv = read_trace(write_trace("fv", write_trace.meta("free_vibration"), {"time": t, "displacement": np.cos(t)}))
     linear = parse_model("linear")
-    assert [m.stiffness for m in _models_for(linear, "nonlinear_stiffness", load)] == ["cubic", "exponential"]
-    assert [m.stiffness for m in _models_for(linear, "nonlinear_stiffness", fv)] == ["cubic"]
+    assert [m.stiffness for m in _models_for(linear, "nonlinear_stiffness", load)] == ["cubic", "exponential",
+                                                                                        "bilinear"]
+    assert [m.stiffness for m in _models_for(linear, "nonlinear_stiffness", fv)] == ["cubic", "bilinear"]
     assert _models_for(parse_model("exponential"), "nonlinear_stiffness", load) == []
+    # beside Kawabata's branches (which carry the elastic law), each elastic law under a Bouc-Wen force
+    assert [(m.stiffness, m.hysteresis) for m in _models_for(parse_model("kawabata"), "nonlinear_stiffness", load)] \
+        == [("cubic", "boucwen"), ("exponential", "boucwen"), ("bilinear", "boucwen")]
     primary = _with_law(parse_model("linear+creep"), "creep", "primary")
     assert _law_of(primary, "creep") == "primary" and primary == parse_model("linear+primary_creep")
     names = free_parameters(primary, "creep")

@@ -129,6 +129,9 @@ def balance_elongation(trace: Trace, fit: ModelFit) -> float | None:
     if fit.spec.stiffness == "exponential":
         from ..fit.elastic import elastic_inverse
         return L0 * float(elastic_inverse("exponential", p)(W)) if W > -p["exp_F"] else None
+    if fit.spec.stiffness == "bilinear":
+        from ..fit.elastic import elastic_inverse
+        return L0 * float(elastic_inverse("bilinear", p)(W))
     return L0 * W / p["EA"] if p.get("EA") else None
 
 

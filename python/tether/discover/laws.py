@@ -93,7 +93,11 @@ EFFECTS = (
         # (exp(|gamma| x) - 1)), and with one parameter fewer it would name hysteresis for a
         # stiffness the cubic misses (an exponential tether's load test: hysteresis named at 1.01 x
         # noise, bench/wider_laws_discovery.py)
-        Law("exponential", S.estimate_start, rigs=_QUASI_STATIC)),
+        Law("exponential", S.estimate_start, rigs=_QUASI_STATIC),
+        # a braid's toe: soft while its yarns straighten, then stiff; the cubic follows a corner
+        # only where it is gentle (generator B's toe-linear free vibration with dry friction:
+        # 2.46 x noise with the cubic and its power term)
+        Law("bilinear", S.bilinear_starts)),
         {}),
     Effect("hysteresis", "hysteresis", "none", (
         Law("boucwen", S.boucwen_starts, shapes=(("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
@@ -244,7 +248,7 @@ def _floor(name: str, sc: _Scales) -> float:
             "bw_beta": 1e-2 / sc.amp, "bw_gamma": 1e-2 / sc.amp}.get(name, 0.0)
 
 
-_POSITIVE = ("EA", "a1", "exp_F", "exp_eps", "primary_J", "primary_tau", "c0", "c1", "c2", "c_drag", "c_coulomb",
+_POSITIVE = ("EA", "a1", "exp_F", "exp_eps", "toe_EA", "toe_eps", "toe_width", "primary_J", "primary_tau", "c0", "c1", "c2", "c_drag", "c_coulomb",
              "coulomb_v", "bw_A",
              "kaw_F_ref", "creep_J1", "creep_J2", "creep_J3", "slip_capacity0", "slip_rate", "creep_tau1", "creep_tau2", "creep_tau3", "slip_knee", "slip_regen_tau",
              "slip_limit", "slip_load_half", *IWAN_K)
@@ -303,19 +307,25 @@ def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
     for nonlinear stiffness beside Kawabata's branches (_kawabata_split)."""
     e = EFFECT[effect]
     if effect in spec.effects:
-        return _kawabata_split(spec, effect)
+        return _kawabata_split(spec, effect, trace)
     if e.law_field is None:
         return [replace(spec, **{e.switch: True})]
     return [replace(spec, **{e.law_field: law.name, **({e.switch: True} if e.switch else {})})
-            for law in e.laws if law.added and (law.rigs is None or trace.rig in law.rigs)]
+            for law in _laws_tried(e, trace)]
 
 
-def _kawabata_split(spec: ModelSpec, effect: str) -> list[ModelSpec]:
+def _laws_tried(effect: Effect, trace: Trace) -> list[Law]:
+    """The laws of ``effect`` that a step adding it tries on ``trace``'s rig."""
+    return [law for law in effect.laws if law.added and (law.rigs is None or trace.rig in law.rigs)]
+
+
+def _kawabata_split(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
     """Kawabata's power-law branches carry the elastic law (spec.effects counts them as nonlinear
-    stiffness too); the stiffness named beside them is a cubic law under a Bouc-Wen force, the
-    model that carries the effect by name."""
+    stiffness too); the stiffness named beside them is each elastic law the rig tries under a
+    Bouc-Wen force, the models that carry the effect by name."""
     if effect == "nonlinear_stiffness" and spec.hysteresis == "kawabata":
-        return [replace(spec, stiffness="cubic", hysteresis="boucwen")]
+        return [replace(spec, stiffness=law.name, hysteresis="boucwen")
+                for law in _laws_tried(EFFECT[effect], trace)]
     return []
 
 

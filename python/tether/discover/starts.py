@@ -227,9 +227,11 @@ def estimate_start(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | N
 
 def boucwen_from_kawabata_starts(base: ModelFit, new: ModelSpec, sc: _Scales,
                                  trace: Trace | None) -> list[dict | None]:
-    """A cubic law under a Bouc-Wen force in place of Kawabata's branches: the data-based estimate,
-    and a linear law of the record's stiffness under a force of a tenth of it."""
-    w = {"a1": sc.ea, "a2": 0.0, "a3": 0.0}
+    """An elastic law under a Bouc-Wen force in place of Kawabata's branches: the data-based
+    estimate, and the law near a linear one of the record's stiffness under a force of a tenth of it."""
+    from ..fit.elastic import near_linear_law
+
+    w = near_linear_law(new.stiffness, sc.ea, sc.eps)
     w.update(_boucwen_start(sc, 0.1, 0.3))
     return [None, w]
 
@@ -254,6 +256,17 @@ def cubic_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | Non
     w = dict(base.params)
     w.update(a1=w.get("EA", sc.ea), a2=0.0, a3=0.0)
     return [w] + ([None] if new.hysteresis == "none" else [])
+
+
+def bilinear_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
+    """The data-based estimate (the corner on a grid, the slopes by least squares along the
+    restoring force or the load curve); and the base's stiffness with a short soft toe (half the
+    stiffness up to a tenth of the record's strain), near the linear law."""
+    from ..fit.elastic import near_linear_law
+
+    w = dict(base.params)
+    w.update(near_linear_law("bilinear", w.get("EA", sc.ea), sc.eps))
+    return [None, w]
 
 
 def damping_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
