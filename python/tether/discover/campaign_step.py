@@ -15,7 +15,8 @@ from .evidence import regimes
 from .fitting import ModelFit, _side_by_side
 from .judge import (_bic, _gap, _slack_acts, bic_change, closed_loops, friction_verdict, full_data_verdict,
                     heldout_verdict, leaves_unexplained, loops_verdict, model_speed, slack_heldout_unasked)
-from .laws import EFFECT, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, candidates, unrevealed
+from .laws import (EFFECT, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, candidates,
+                   tried_in_campaigns, unrevealed)
 from .starts import candidate_starts
 
 
@@ -36,7 +37,7 @@ class Steps:
                 continue
             i = self.worst_record(self.cur, able)
             for new in _models_for(self.cur.spec, e, self.records[i].trace):
-                if payload and new.hysteresis == "kawabata":
+                if (payload and new.hysteresis == "kawabata") or not tried_in_campaigns(e, new):
                     continue
                 out.append((e, new, i, self.starts_on(i, new)))
         return out

@@ -29,7 +29,8 @@ class Law:
     ``starts_from`` those of a model that puts it in another law's place, as (that law, starts);
     ``reseed`` the moves that reseed the law's fitted terms where the final model still misses the
     record, as (function of rival.py, what it does: the stage's words); ``loop_terms`` the terms
-    that open a hysteresis law's loops (at zero the law is elastic: judge._loops_open).
+    that open a hysteresis law's loops (at zero the law is elastic: judge._loops_open);
+    ``campaigns`` false for a law a campaign of several records does not try yet (docs/discovery.md).
     A switch without a law (slack) has one law, named as its effect, for its starts."""
 
     name: str
@@ -42,6 +43,7 @@ class Law:
     starts_from: tuple = ()
     reseed: tuple = ()
     loop_terms: tuple = ()
+    campaigns: bool = True
 
 
 @dataclass(frozen=True)
@@ -97,7 +99,7 @@ EFFECTS = (
         # a braid's toe: soft while its yarns straighten, then stiff; the cubic follows a corner
         # only where it is gentle (generator B's toe-linear free vibration with dry friction:
         # 2.46 x noise with the cubic and its power term)
-        Law("bilinear", S.bilinear_starts)),
+        Law("bilinear", S.bilinear_starts, campaigns=False)),
         {}),
     Effect("hysteresis", "hysteresis", "none", (
         Law("boucwen", S.boucwen_starts, shapes=(("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
@@ -317,6 +319,12 @@ def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
 def _laws_tried(effect: Effect, trace: Trace) -> list[Law]:
     """The laws of ``effect`` that a step adding it tries on ``trace``'s rig."""
     return [law for law in effect.laws if law.added and (law.rigs is None or trace.rig in law.rigs)]
+
+
+def tried_in_campaigns(effect: str, spec: ModelSpec) -> bool:
+    """Does a campaign try the model ``spec`` as a candidate of ``effect`` (Law.campaigns)?"""
+    law = EFFECT[effect].law(EFFECT[effect].law_in(spec))
+    return law is None or law.campaigns
 
 
 def _kawabata_split(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:

@@ -146,13 +146,16 @@ class Search(PairStep, RivalBranch):
         self.stop = ""
         self.fit_start_model()
 
+    #: the record's own starts of its nuisance parameters (set by fit_start_model)
+    nz_start: dict | None = None
+
     def fit_start_model(self) -> None:
         """The start model, fitted; the work cap of the search's fits, CAP_SIMULATIONS of its simulations
         (counted in evaluations of the model's equations, as the caps are); its held-out error."""
         spec, trace = self.spec, self.trace
         self.say(f"fitting the start model {spec.canonical}"
                  + (f" with the nuisance parameters {', '.join(self.nuisance)}" if self.nuisance else ""))
-        nz_start = nuisance_start(trace, self.nuisance)
+        nz_start = self.nz_start = nuisance_start(trace, self.nuisance)
         starts = [data_start(trace, spec, nz_start), None] if nz_start else [None]
         cur = fit_model(trace, spec, self.base_effects, starts, self.sc, nuisance=self.nuisance)
         if not cur.ok:
@@ -185,8 +188,8 @@ class Search(PairStep, RivalBranch):
         held = tuple(held) + self.shape_held
         if tr is self.part:
             held += _knots_unseen(self.part, extra, starts)
-        else:       # the data-based estimate reads the record as the current model's nuisance values describe it
-            starts = [data_start(tr, sp, self.cur.nuisance) if s is None else s for s in starts]
+        else:
+            starts = self._data_starts(tr, sp, starts)
         work_cap = cap_factor * self.fit_cap * self.own_work_ratio(tr, sp, starts[0])
         r = fit_model(tr, sp, eff, starts, scales, work_cap=work_cap, extra=extra, held=held,
                       deadline=self.deadline, own_thread=own_thread, baseline_rms=baseline_rms,
@@ -194,6 +197,18 @@ class Search(PairStep, RivalBranch):
         if self.deadline is not None and time.perf_counter() > self.deadline:
             self.budget_hit = True           # this fit may have been cut short: it cannot judge
         return r
+
+    def _data_starts(self, tr, sp, starts) -> list:
+        """``starts`` with tether.fit's data-based estimate (None) read off the record as the current
+        model's nuisance values describe it, and as the record's own nuisance starts do where those
+        differ: a law the model lacks can bend its nuisance values (a linear law under Bouc-Wen
+        shifted a toe-linear load test's offset by -0.12 m, and the toe read off the record so
+        shifted came out a thirtieth of its stiffness)."""
+        readings = [self.cur.nuisance] + ([self.nz_start] if self.nz_start and self.nz_start != self.cur.nuisance else [])
+        out = []
+        for s in starts:
+            out += [data_start(tr, sp, nz) for nz in readings] if s is None else [s]
+        return out
 
     def shape_fit(self, tr, sp, eff, starts, extra, own_thread=False, cap_factor=1.0, **engine) -> ModelFit:
         """A fit with the shape terms ``extra`` free and the terms they replace held."""

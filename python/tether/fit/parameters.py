@@ -133,7 +133,10 @@ def check_names(names: Iterable[str], spec: ModelSpec, what: str) -> list[str]:
 #: whose kink at an exhausted capacity stops the integrator (docs/campaign-discovery.md, session 44)
 FIT_RANGES = {"creep_tau1": (1.0, 1e7), "creep_tau2": (1.0, 1e7), "creep_tau3": (1.0, 1e7),
               "creep_J1": (0.0, 1e-3), "creep_J2": (0.0, 1e-3), "creep_J3": (0.0, 1e-3),
-              "slip_regen_tau": (1.0, 1e7), "slip_knee": (1e-7, 1.0)}
+              "slip_regen_tau": (1.0, 1e7), "slip_knee": (1e-7, 1.0),
+              # a toe's corner narrower than 1e-5 strain is a kink no record resolves: a load test
+              # without a toe drove toe_width to 2e-30 and every simulation crawled through it
+              "toe_width": (1e-5, 0.1), "toe_eps": (1e-5, 0.5)}
 
 
 def bounds_and_start(name: str, start: float, limits: dict, scales: dict) -> tuple[float, float, float, str]:
