@@ -285,3 +285,12 @@ def run_cs(inst: Instance, times, outputs, inputs=None):
 def grid(t_end, h):
     n = int(round(t_end / h))
     return np.arange(n + 1) * h
+
+
+def period_by_zero_crossings(t, x):
+    """The mean period of an oscillation about zero from its upward zero crossings (linear
+    interpolation between samples), and the number of crossings."""
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    s = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
+    tc = t[s] - x[s] * (t[s + 1] - t[s]) / (x[s + 1] - x[s])
+    return float((tc[-1] - tc[0]) / (len(tc) - 1)), len(tc)

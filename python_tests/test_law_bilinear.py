@@ -72,12 +72,6 @@ def test_bilinear_law_load_ramp_and_balance_follow_the_closed_form_in_the_fmu_an
     assert abs(balance - at_balance) < 1e-12 * at_balance
 
 
-def _period_by_zero_crossings(t, x):
-    s = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
-    tc = t[s] - x[s] * (t[s + 1] - t[s]) / (x[s + 1] - x[s])
-    return float((tc[-1] - tc[0]) / (len(tc) - 1)), len(tc)
-
-
 @pytest.mark.parametrize("mass, where", [(0.5, "in the toe"), (M, "beyond the toe")])
 def test_bilinear_law_small_vibration_period_at_a_preload_in_the_fmu_and_the_engine(mass, where):
     """omega = sqrt(k(eps_0) / (m L0)) at the balance eps_0 of the weight m g: in the toe (0.5 kg,
@@ -89,9 +83,9 @@ def test_bilinear_law_small_vibration_period_at_a_preload_in_the_fmu_and_the_eng
     inst = H.cs(values)
     r = H.run_cs(inst, grid, ["displacement"])
     inst.free()
-    p_fmu, n = _period_by_zero_crossings(np.asarray(r["time"]), np.asarray(r["displacement"]))
+    p_fmu, n = H.period_by_zero_crossings(np.asarray(r["time"]), np.asarray(r["displacement"]))
     x = idn.simulate(idn.Experiment(np.asarray(grid, float), settings={k: float(v) for k, v in values.items()}))
-    p_eng, _ = _period_by_zero_crossings(np.asarray(grid, float), x)
+    p_eng, _ = H.period_by_zero_crossings(np.asarray(grid, float), x)
     print(f"FIGURE bilinear law, small vibration {where} (m = {mass} kg, eps_0 = {eps0:.4g}): period "
           f"{period:.10g} s, FMU rel {p_fmu / period - 1:.2g} ({n} crossings), engine rel {p_eng / period - 1:.2g}")
     # the amplitude's own share: O((x0 k'' / (L0 k))^2), far below 1e-6 at x0 = 1e-5 m

@@ -57,14 +57,6 @@ def test_exponential_law_load_ramp_and_balance_follow_the_closed_form_inverse_in
     assert abs(balance - at_balance) < 1e-13 * at_balance
 
 
-def _period_by_zero_crossings(t, x):
-    """The mean period of an oscillation about zero from its upward zero crossings (linear
-    interpolation between samples)."""
-    s = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
-    tc = t[s] - x[s] * (t[s + 1] - t[s]) / (x[s + 1] - x[s])
-    return float((tc[-1] - tc[0]) / (len(tc) - 1)), len(tc)
-
-
 def _small_vibration_expected():
     """omega = sqrt(k(eps_0) / (m L0)) at the preload eps_0 = eps_e ln(1 + m g / F_e)."""
     eps0 = float(exponential_strain_at(M * G))
@@ -81,10 +73,10 @@ def test_exponential_law_small_vibration_frequency_at_a_preload_in_the_fmu_and_t
     inst = H.cs(SMALL)
     r = H.run_cs(inst, grid, ["displacement"])
     inst.free()
-    p_fmu, n_fmu = _period_by_zero_crossings(np.asarray(r["time"]), np.asarray(r["displacement"]))
+    p_fmu, n_fmu = H.period_by_zero_crossings(np.asarray(r["time"]), np.asarray(r["displacement"]))
     exp = idn.Experiment(np.asarray(grid, float), settings={k: float(v) for k, v in SMALL.items()})
     x = idn.simulate(exp)
-    p_eng, _ = _period_by_zero_crossings(np.asarray(grid, float), x)
+    p_eng, _ = H.period_by_zero_crossings(np.asarray(grid, float), x)
     # the amplitude's own share: a hardening law's period falls with amplitude by a relative
     # O((x0 / (L0 eps_e))^2) = 2e-7 here
     print(f"FIGURE exponential law, small vibration at the preload of {M} kg: period {period:.12g} s (closed form), "

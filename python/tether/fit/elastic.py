@@ -38,15 +38,19 @@ def cubic_inverse(params: Mapping[str, float]):
 
     def inv(T):
         T = np.asarray(T, float)
-        lo = np.zeros_like(T)
-        hi = np.full_like(T, hi0)
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            below = cubic_tension(params, mid) < T
-            lo = np.where(below, mid, lo)
-            hi = np.where(below, hi, mid)
-        return 0.5 * (lo + hi)
+        return _bisect(cubic_tension, params, T, np.zeros_like(T), np.full_like(T, hi0), 60)
     return inv
+
+
+def _bisect(tension, params: Mapping[str, float], T: np.ndarray, lo: np.ndarray, hi: np.ndarray, steps: int):
+    """The strain between ``lo`` and ``hi`` at which the rising law ``tension`` carries T:
+    ``steps`` halvings of the bracket, vectorised over T."""
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        below = tension(params, mid) < T
+        lo = np.where(below, mid, lo)
+        hi = np.where(below, hi, mid)
+    return 0.5 * (lo + hi)
 
 
 def cubic_from_taylor(k1: float, k2: float, k3: float, L0: float, weight: float) -> dict | None:
@@ -98,14 +102,7 @@ def _bisection_inverse(tension, params: Mapping[str, float], span: float):
     unit T (|eps| <= |T| span): bisection, vectorised."""
     def inv(T):
         T = np.asarray(T, float)
-        lo = np.minimum(T * span, 0.0)
-        hi = np.maximum(T * span, 0.0)
-        for _ in range(80):
-            mid = 0.5 * (lo + hi)
-            below = tension(params, mid) < T
-            lo = np.where(below, mid, lo)
-            hi = np.where(below, hi, mid)
-        return 0.5 * (lo + hi)
+        return _bisect(tension, params, T, np.minimum(T * span, 0.0), np.maximum(T * span, 0.0), 80)
     return inv
 
 
