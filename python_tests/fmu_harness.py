@@ -289,8 +289,11 @@ def grid(t_end, h):
 
 def period_by_zero_crossings(t, x):
     """The mean period of an oscillation about zero from its upward zero crossings (linear
-    interpolation between samples), and the number of crossings."""
+    interpolation between samples), and the number of crossings; the period is nan where there are
+    fewer than two, so that the caller's assertion on the count, not an index error, reports it."""
     t, x = np.asarray(t, float), np.asarray(x, float)
     s = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
     tc = t[s] - x[s] * (t[s + 1] - t[s]) / (x[s + 1] - x[s])
+    if len(tc) < 2:
+        return float("nan"), len(tc)
     return float((tc[-1] - tc[0]) / (len(tc) - 1)), len(tc)
