@@ -133,10 +133,9 @@ def nothing_missing(doc: dict) -> str:
             "the noise smaller than the noise itself.")
 
 
-def discovery_page(d, doc: dict, images: dict) -> str:
+def _step_rows(doc: dict) -> str:
+    """The table rows of the steps: each effect added, its model, the error before and after, where."""
     esc = html.escape
-    sigma = d.noise.sigma
-    tr = d.trace
     rows = []
     for i, s in enumerate(doc["steps"], 1):
         where = "; ".join(f"{w['start_s']:.4g}–{w['end_s']:.4g} s ({esc(', '.join(w['regimes']) or '–')})"
@@ -145,30 +144,39 @@ def discovery_page(d, doc: dict, images: dict) -> str:
                     f"{esc(s['model_after'])}</code></td><td>{s['rmse_before_over_noise']:.2f}</td>"
                     f"<td>{s['rmse_after_over_noise']:.2f}</td><td class=l>{where or '–'}</td>"
                     f"<td class=l>{esc(s['evidence'])}</td></tr>")
-    rounds = []
-    for i, r in enumerate(doc["rounds"]):
-        cands = "".join(
-            f"<tr class={'good' if c['accepted'] else 'bad'}><td class=l>{esc(c['effect'])}</td>"
-            f"<td class=l><code>{esc(c['model'])}</code></td><td>{c['added_parameters']}</td>"
-            f"<td>{_f(c['rmse_over_noise'], '.2f')}</td><td>{_f(c['heldout_rmse_over_noise'], '.2f')}</td>"
-            f"<td>{_f(c['bic_change'], '.0f')}</td><td>{c['signature']:.2f}</td>"
-            f"<td class=l>{esc(c['signature_text'])}</td><td class=l>{esc(c['verdict'])}</td></tr>"
-            for c in r["candidates"])
-        reg = "".join(f"<tr><td class=l>{esc(k)}</td><td>{100 * v['samples']:.0f} %</td>"
-                      f"<td>{v['rms_over_noise']:.2f}</td><td>{100 * v['share_of_excess']:.0f} %</td></tr>"
-                      for k, v in r["regimes"].items())
-        wins = ", ".join(f"{w['start_s']:.4g}–{w['end_s']:.4g} s" for w in r["windows"][:12]) or "none"
-        more = f" (and {len(r['windows']) - 12} more)" if len(r["windows"]) > 12 else ""
-        head = f"Round {i + 1}: <code>{esc(r['model'])}</code>, RMS error {r['rmse_over_noise']:.2f} × noise " \
-               f"(held-out {r['heldout_rmse'] / sigma:.2f} × noise)"
-        body = f"<p>Windows where the residual stands above the noise: {esc(wins)}{more}.</p>" \
-               f"<table><tr><th>regime</th><th>samples</th><th>RMS / σ</th><th>share of the excess</th></tr>{reg}</table>"
-        if cands:
-            body += ("<table><tr><th>candidate</th><th>model</th><th>added parameters</th><th>RMS / σ</th>"
-                     "<th>held-out RMS / σ</th><th>ΔBIC</th><th>signature</th><th>what the residual shows</th>"
-                     f"<th>verdict</th></tr>{cands}</table>")
-        verdict = f"<p>Added: <b>{esc(r['added'])}</b>.</p>" if r["added"] else f"<p>Stopped: {esc(doc['stop_reason'])}</p>"
-        rounds.append(f"<h3>{head}</h3>{body}{verdict}")
+    return "".join(rows)
+
+
+def _round_html(i: int, r: dict, doc: dict, sigma: float) -> str:
+    """One round of the search: its model, where the residual stands out, its candidates, its verdict."""
+    esc = html.escape
+    cands = "".join(
+        f"<tr class={'good' if c['accepted'] else 'bad'}><td class=l>{esc(c['effect'])}</td>"
+        f"<td class=l><code>{esc(c['model'])}</code></td><td>{c['added_parameters']}</td>"
+        f"<td>{_f(c['rmse_over_noise'], '.2f')}</td><td>{_f(c['heldout_rmse_over_noise'], '.2f')}</td>"
+        f"<td>{_f(c['bic_change'], '.0f')}</td><td>{c['signature']:.2f}</td>"
+        f"<td class=l>{esc(c['signature_text'])}</td><td class=l>{esc(c['verdict'])}</td></tr>"
+        for c in r["candidates"])
+    reg = "".join(f"<tr><td class=l>{esc(k)}</td><td>{100 * v['samples']:.0f} %</td>"
+                  f"<td>{v['rms_over_noise']:.2f}</td><td>{100 * v['share_of_excess']:.0f} %</td></tr>"
+                  for k, v in r["regimes"].items())
+    wins = ", ".join(f"{w['start_s']:.4g}–{w['end_s']:.4g} s" for w in r["windows"][:12]) or "none"
+    more = f" (and {len(r['windows']) - 12} more)" if len(r["windows"]) > 12 else ""
+    head = f"Round {i + 1}: <code>{esc(r['model'])}</code>, RMS error {r['rmse_over_noise']:.2f} × noise " \
+           f"(held-out {r['heldout_rmse'] / sigma:.2f} × noise)"
+    body = f"<p>Windows where the residual stands above the noise: {esc(wins)}{more}.</p>" \
+           f"<table><tr><th>regime</th><th>samples</th><th>RMS / σ</th><th>share of the excess</th></tr>{reg}</table>"
+    if cands:
+        body += ("<table><tr><th>candidate</th><th>model</th><th>added parameters</th><th>RMS / σ</th>"
+                 "<th>held-out RMS / σ</th><th>ΔBIC</th><th>signature</th><th>what the residual shows</th>"
+                 f"<th>verdict</th></tr>{cands}</table>")
+    verdict = f"<p>Added: <b>{esc(r['added'])}</b>.</p>" if r["added"] else f"<p>Stopped: {esc(doc['stop_reason'])}</p>"
+    return f"<h3>{head}</h3>{body}{verdict}"
+
+
+def _refinements_html(doc: dict, sigma: float) -> str:
+    """The section on the named laws' shapes, rivals and reseeds ("" where none was tried)."""
+    esc = html.escape
     refined = "".join(
         f"<tr class={'good' if r['accepted'] else 'bad'}><td class=l>{esc(r['effect'])}</td>"
         f"<td class=l>{esc(_refinement_terms(r))}</td>"
@@ -176,16 +184,26 @@ def discovery_page(d, doc: dict, images: dict) -> str:
         f"<td>{_f(r['rmse_after_over_noise'], '.2f')}</td><td>{_f(r['heldout_rmse_before'] / sigma, '.2f')}</td>"
         f"<td>{_f(r['heldout_rmse_after'] / sigma, '.2f')}</td><td>{_f(r['bic_change'], '.0f')}</td>"
         f"<td class=l>{esc(r['verdict'])}</td></tr>" for r in doc["refinements"])
-    if refined:
-        refined = ("<h2>The shape of the named laws</h2><p>With the effects named, the shape terms of their laws "
-                   "were freed one group at a time (kept when the BIC falls and the held-out part does not get "
-                   "worse; the best group wins), and a hysteresis named before another effect was fitted again "
-                   "with its rival law in its place, kept on the same terms. An Iwan bank still above the noise had "
-                   "its idle elements restarted (kept on a lower error), then was made finer, sixteen elements for "
-                   "eight (kept on the same terms as a shape). This changes no effect's name.</p>"
-                   "<table><tr><th>effect</th>"
-                   "<th>terms freed</th><th>RMS / σ before</th><th>after</th><th>held-out RMS / σ before</th>"
-                   f"<th>after</th><th>ΔBIC</th><th>verdict</th></tr>{refined}</table>")
+    if not refined:
+        return ""
+    return ("<h2>The shape of the named laws</h2><p>With the effects named, the shape terms of their laws "
+            "were freed one group at a time (kept when the BIC falls and the held-out part does not get "
+            "worse; the best group wins), and a hysteresis named before another effect was fitted again "
+            "with its rival law in its place, kept on the same terms. An Iwan bank still above the noise had "
+            "its idle elements restarted (kept on a lower error), then was made finer, sixteen elements for "
+            "eight (kept on the same terms as a shape). This changes no effect's name.</p>"
+            "<table><tr><th>effect</th>"
+            "<th>terms freed</th><th>RMS / σ before</th><th>after</th><th>held-out RMS / σ before</th>"
+            f"<th>after</th><th>ΔBIC</th><th>verdict</th></tr>{refined}</table>")
+
+
+def discovery_page(d, doc: dict, images: dict) -> str:
+    esc = html.escape
+    sigma = d.noise.sigma
+    tr = d.trace
+    rows = [_step_rows(doc)]
+    rounds = [_round_html(i, r, doc, sigma) for i, r in enumerate(doc["rounds"])]
+    refined = _refinements_html(doc, sigma)
     nuisance = nuisance_html(doc.get("nuisance"))
     added = ", ".join(doc["added_effects"]) or "nothing"
     every = int(doc.get("searched_every", 1))
