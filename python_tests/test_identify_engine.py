@@ -512,6 +512,27 @@ def test_a_work_cap_stops_the_same_fit_at_the_same_iteration_however_busy_the_ma
     assert busy == quiet
 
 
+def test_a_trial_point_that_crawls_is_a_refused_step_not_the_end_of_the_fit():
+    # viscous damping far above the truth turns the equations stiff: the optimum's simulation
+    # needs about nine times the start's work (c0 = 150 against 15000). A crawl factor of 2 refuses
+    # the steps to it, and the fit ends short of the optimum, with a result, not an error; the
+    # default leaves this fit as it is without a crawl cap, to the bit
+    truth = dict(TRUTH_SIMPLE, c0=15000.0)
+    e = _synthetic(dict(SIMPLE, x0=-0.1669), truth, 2001, 2e-4, seed=9)
+    free = {"c0": (1.0, 1e6, 150.0)}
+    before = idn.simulation_work()
+    idn.simulate(e, {"c0": 150.0})
+    start_work = idn.simulation_work() - before
+    idn.simulate(e, truth)
+    assert idn.simulation_work() - before - start_work > 4 * start_work
+    off = idn.fit([e], free, n_threads=1, crawl_factor=0)
+    default = idn.fit([e], free, n_threads=1)
+    assert np.array_equal(default.values, off.values) and default.rhs_evaluations == off.rhs_evaluations
+    assert abs(off.values[0] / 15000.0 - 1) < 0.01
+    tight = idn.fit([e], free, n_threads=1, crawl_factor=2)
+    assert tight.status >= 0 and tight.values[0] < 0.98 * off.values[0] and tight.rms > 1.1 * off.rms
+
+
 # ---- the simulation cache: a simulation asked for again is read back, the same bits -------------
 def _cache_record(seed: int):
     e = _synthetic(dict(SIMPLE, x0=-0.1669), TRUTH_SIMPLE, 2001, 2e-4, seed=seed)

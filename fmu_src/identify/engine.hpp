@@ -64,6 +64,9 @@ struct Limits {
     std::string message() const;
 };
 
+// the error of a simulation stopped at its crawl cap (Prepared::crawl_cap)
+std::string crawl_message(long long cap);
+
 // the equation evaluations of the last simulation on this thread (kt_last_simulation_work)
 extern thread_local long long last_simulation_work;
 
@@ -98,6 +101,10 @@ struct Prepared {
     // the states (a chunk with a discrete event is redone sample by sample)
     int stride = 1;
     const Limits *limits = nullptr; // checked during the simulation (NULL = none)
+    // evaluations of the equations a simulation may need before it fails as one that crawled
+    // (0 = no bound): set by a fit from its start's work (kt_fit_options.crawl_factor), between
+    // the batches of simulations that read it
+    mutable long long crawl_cap = 0;
     // fit speed-up (false = off, the FMU's exact step sequence): with an input, integrate on through
     // the samples where the input's pieces join (InputJoin) instead of restarting the integrator at
     // every sample as an importer's fmi2SetReal does (a piece that jumps still restarts it); not

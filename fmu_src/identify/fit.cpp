@@ -121,9 +121,11 @@ struct Problem {
     double to_theta(int j, double p) const { return log_scale[j] ? std::log(p * sign[j]) : p / scale[j]; }
 
     // residuals at theta; false on a failed simulation. keep_raw: the outputs before offset_measured
-    // kept (RawOutputs) where it is free
-    bool residuals(const VectorXd &th, VectorXd &r, std::string &err, bool keep_raw = true) const
+    // kept (RawOutputs) where it is free; works (if not NULL): each experiment's simulation work
+    bool residuals(const VectorXd &th, VectorXd &r, std::string &err, bool keep_raw = true,
+                   std::vector<long long> *works = nullptr) const
     {
+        if (works) works->clear();
         r.resize(n_res);
         const bool keep = keep_raw && raw && offset_j >= 0;
         VectorXd before(keep ? n_res : 0);
@@ -138,6 +140,7 @@ struct Problem {
             const double offset = S.meas.offset_measured;
             if (keep) S.meas.offset_measured = 0.0;
             if (!kt::simulate(pe, S, out, err)) return false;
+            if (works) works->push_back(kt::last_simulation_work);
             if (keep) {
                 std::copy(out, out + e.n, before.data() + off);
                 kt::add_measured_offset(pe, offset, out);
@@ -167,6 +170,19 @@ struct Problem {
 
     // CPU seconds of the threads batch() started (the calling thread's own are read by kt_fit)
     std::atomic<long long> *helper_cpu_ns = nullptr;
+
+    // the residuals at a Levenberg-Marquardt run's start, with no crawl cap; then each experiment's
+    // cap from its simulation's work there (kt_fit_options.crawl_factor)
+    bool start_residuals(const VectorXd &th, VectorXd &r, std::string &err, double crawl_factor) const
+    {
+        for (const kt::Prepared &pe : exps) pe.crawl_cap = 0;
+        std::vector<long long> works;
+        if (!residuals(th, r, err, true, &works)) return false;
+        if (crawl_factor > 0)
+            for (std::size_t i = 0; i < exps.size(); ++i)
+                exps[i].crawl_cap = (long long)(crawl_factor * (double)std::max(works[i], 2LL * exps[i].e->n));
+        return true;
+    }
 
     // evaluate residuals at several points in parallel
     void batch(const std::vector<VectorXd> &pts, std::vector<VectorXd> &rs, std::vector<char> &ok,
@@ -369,7 +385,7 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
     };
     ++C.evaluations;
     if (P.limits && P.limits->expired() && stopped_by_deadline()) return R;
-    if (!P.residuals(th, r, err)) {
+    if (!P.start_residuals(th, r, err, o.crawl_factor)) {
         if (!stopped_by_deadline()) {
             R.message = "the start fails to simulate: " + err;
             R.start_failed = true;
@@ -650,6 +666,7 @@ void kt_fit_default_options(kt_fit_options *o)
     o->progress_ctx = nullptr;
     o->continuous_input = 1;
     o->broyden_updates = 0;
+    o->crawl_factor = 100.0;
 }
 
 int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const *names, const double *lower,

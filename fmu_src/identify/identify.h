@@ -193,6 +193,12 @@ typedef struct {
                                    equations summed over all its simulations. Stops the fit like a
                                    deadline ("kt_fit: stopped: the work cap passed ..."), but the same
                                    fit stops at the same point however busy the machine is */
+    double crawl_factor;     /* a trial point whose simulation needs more than this many times the
+                                work of the Levenberg-Marquardt run's start (per experiment, and at
+                                least 2 evaluations per sample) fails like one that does not
+                                simulate: its step is refused and the fit goes on with a shorter
+                                one, instead of crawling through equations turned stiff until the
+                                work cap or a deadline ends the whole fit (default 100; 0 = off) */
 } kt_fit_options;
 
 KT_API void kt_fit_default_options(kt_fit_options *o);

@@ -343,6 +343,11 @@ std::string Limits::message() const
     }
 }
 
+std::string crawl_message(long long cap)
+{
+    return "the simulation crawled past " + std::to_string(cap) + " evaluations of the equations (its crawl cap)";
+}
+
 // the physics of one experiment (simulate below adds the measured column's offset)
 static bool simulate_model(const Prepared &p, const tether_model &M0, const Measurement &meas, double *out,
                            std::string &err)
@@ -352,6 +357,7 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     IntegratorGuard G;
     G.limits = p.limits;
     auto over_time = [&](unsigned every) -> bool {
+        if (p.crawl_cap > 0 && G.work() > p.crawl_cap) { err = crawl_message(p.crawl_cap); return true; }
         if (!p.limits || (++polls % every) != 0) return false;
         // the simulation's own work so far counts only against a work cap (its integrator's counters)
         if (!p.limits->expired(p.limits->work_cap > 0 ? G.work() : 0)) return false;

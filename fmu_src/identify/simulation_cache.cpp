@@ -137,8 +137,8 @@ bool simulate(const Prepared &p, const Setup &S, double *out, std::string &err)
     const std::uint64_t h = k.hash();
     long long work = 0;
     // read back only where the simulation made again would not be stopped by the fit's work cap
-    // either: its in-flight work never exceeds its whole work
-    if (cache().get(k, h, out, n, work) &&
+    // or its crawl cap either: its in-flight work never exceeds its whole work
+    if (cache().get(k, h, out, n, work) && !(p.crawl_cap > 0 && work > p.crawl_cap) &&
         !(p.limits && p.limits->expired(p.limits->work_cap > 0 ? work : 0))) {
         last_simulation_work = work;
         if (p.limits) p.limits->work += work;

@@ -66,6 +66,7 @@ class _Options(C.Structure):
         ("progress", C.c_void_p), ("progress_ctx", C.c_void_p),
         ("deadline_monotonic", C.c_double), ("deadline_cpu", C.c_double), ("deadline_thread_cpu", C.c_double),
         ("continuous_input", C.c_int), ("broyden_updates", C.c_int), ("max_rhs_evaluations", C.c_double),
+        ("crawl_factor", C.c_double),
     ]
 
 
@@ -404,7 +405,8 @@ def fit(experiments: Sequence[Experiment], free: Mapping[str, tuple], *, scaling
 
     options: any field of kt_fit_options (max_iterations, ftol, xtol, gtol, fd_step,
     central_differences, n_starts, start_spread, seed, n_threads, rtol, singular_rel_tol,
-    max_rel_std, stat_tol, output_stride, horizon_stages, continuous_input, broyden_updates, verbose,
+    max_rel_std, stat_tol, output_stride, horizon_stages, continuous_input, broyden_updates, crawl_factor,
+    verbose,
     deadline_monotonic,
     deadline_cpu and deadline_thread_cpu (readings of time.CLOCK_MONOTONIC,
     time.CLOCK_PROCESS_CPUTIME_ID and the calling thread's time.CLOCK_THREAD_CPUTIME_ID, see
