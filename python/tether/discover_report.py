@@ -201,7 +201,7 @@ def discovery_page(d, doc: dict, images: dict) -> str:
     esc = html.escape
     sigma = d.noise.sigma
     tr = d.trace
-    rows = [_step_rows(doc)]
+    steps = _step_rows(doc)
     rounds = [_round_html(i, r, doc, sigma) for i, r in enumerate(doc["rounds"])]
     refined = _refinements_html(doc, sigma)
     nuisance = nuisance_html(doc.get("nuisance"))
@@ -224,7 +224,7 @@ RMS error {doc['rmse_final']:.3g} m = {doc['rmse_final_over_noise']:.2f} × the 
 <code>tether simulate OTHER.csv --params discovery.json</code>).</p>
 <h2>The steps</h2>
 <table><tr><th>#</th><th>effect</th><th>model after</th><th>RMS / σ before</th><th>after</th>
-<th>where the disagreement was</th><th>evidence</th></tr>{''.join(rows) or '<tr><td colspan=7>no step: no effect named</td></tr>'}</table>
+<th>where the disagreement was</th><th>evidence</th></tr>{steps or '<tr><td colspan=7>no step: no effect named</td></tr>'}</table>
 {nuisance}
 <h2>The gap, step by step</h2><img src="{esc(images['gap'])}" alt="gap">
 <h2>The record against each model</h2>
