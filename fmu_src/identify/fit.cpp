@@ -97,6 +97,10 @@ int fitted_samples(const kt_experiment &e)
     return n;
 }
 
+// the least work per sample a crawl cap counts as its start's (a start that barely moves, e.g. a
+// record at rest, would otherwise cap its trial points near nothing)
+constexpr long long KT_CRAWL_FLOOR_PER_SAMPLE = 2;
+
 struct Problem {
     std::vector<kt::Prepared> exps;
     std::vector<int> par;      // parameter table indices of the free parameters
@@ -172,7 +176,8 @@ struct Problem {
     std::atomic<long long> *helper_cpu_ns = nullptr;
 
     // the residuals at a Levenberg-Marquardt run's start, with no crawl cap; then each experiment's
-    // cap from its simulation's work there (kt_fit_options.crawl_factor)
+    // cap from its simulation's work there (kt_fit_options.crawl_factor), counted as at least
+    // KT_CRAWL_FLOOR_PER_SAMPLE evaluations per sample
     bool start_residuals(const VectorXd &th, VectorXd &r, std::string &err, double crawl_factor) const
     {
         for (const kt::Prepared &pe : exps) pe.crawl_cap = 0;
@@ -180,7 +185,7 @@ struct Problem {
         if (!residuals(th, r, err, true, &works)) return false;
         if (crawl_factor > 0)
             for (std::size_t i = 0; i < exps.size(); ++i)
-                exps[i].crawl_cap = (long long)(crawl_factor * (double)std::max(works[i], 2LL * exps[i].e->n));
+                exps[i].crawl_cap = (long long)(crawl_factor * (double)std::max(works[i], KT_CRAWL_FLOOR_PER_SAMPLE * exps[i].e->n));
         return true;
     }
 

@@ -356,7 +356,8 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     unsigned long polls = 0;
     IntegratorGuard G;
     G.limits = p.limits;
-    auto over_time = [&](unsigned every) -> bool {
+    // the crawl cap, read at every call; the deadlines and the work cap every `every` calls
+    auto must_stop = [&](unsigned every) -> bool {
         if (p.crawl_cap > 0 && G.work() > p.crawl_cap) { err = crawl_message(p.crawl_cap); return true; }
         if (!p.limits || (++polls % every) != 0) return false;
         // the simulation's own work so far counts only against a work cap (its integrator's counters)
@@ -403,7 +404,7 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
 
     // one step: the inputs of sample s, the outputs there, then fmi2DoStep to sample s + 1
     auto step = [&](double *o, bool last) -> bool {
-        if (over_time(16)) return false;
+        if (must_stop(16)) return false;
         bool joined = false; // the input changed here, but its pieces join (Prepared::continuous_input)
         if (s > 0 && has_input && set_input(M, meas, e, input_index(s), t)) {
             joined = carry_on &&
@@ -531,7 +532,7 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
             while (b < n - 1 && pieces_join(e, meas, p.join, b - 1, e.time[b - 1], b, e.time[b])) ++b;
             pieces.last = b - 1;
             for (int j = k; j < b; ++j) {
-                if (over_time(16)) return false;
+                if (must_stop(16)) return false;
                 pieces.select(t, M);
                 outputs_at(t, y, out + (std::size_t)j * n_out);
                 // the switches the FMU makes where its input is set; a restart where the pieces do
@@ -559,7 +560,7 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     constexpr int NS = TETHER_NUMBER_OF_STATES;
     int k = 0;
     while (k < n - 1) {
-        if (over_time(1)) return false;
+        if (must_stop(1)) return false;
         const int k2 = std::min(n - 1, k + stride);
         if (needs_reset) {
             tether_event_update(&M, t, y, msg, sizeof msg);
