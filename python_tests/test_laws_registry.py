@@ -158,25 +158,26 @@ def _due(state) -> list:
 
 def test_the_plan_conditions_read_the_search_state_as_documented():
     """Each stage's condition on a search state built for it: the first search, the final fit and
-    (the budget not spent) the shapes and the wider laws always; the second search only once a kept
+    (the budget not spent) the shapes, the other rival laws and the wider laws always; the second search only once a kept
     shape asked for it; its shapes only where it named an effect or left shapes; the rival law only
     where the step fitted one; the reseed stages where a law can be reseeded (the second only after
     the rival was kept); the re-test where a law changed; the pairs where the search stopped without
     a winner (pairs_due, tested in test_discover_pairs.py) and before the reseed; a spent budget
     leaves the first search and the final fit."""
-    assert _due(_state()) == ["effects", "shapes", "wider laws", "final fit"]
+    assert _due(_state()) == ["effects", "shapes", "other rival laws", "wider laws", "final fit"]
     assert _due(_state(budget_hit=True, search_again=True, rival_kept=True, has_rival=lambda: True,
                        laws_changed=lambda: {"hysteresis"})) == ["effects", "effects again", "final fit"]
     assert "shapes again" not in _due(_state(search_again=True))
     assert "shapes again" in _due(_state(search_again=True, named_again=lambda: True))
     assert "shapes again" in _due(_state(search_again=True, shapes_left=lambda: True))
     assert "rival law" in _due(_state(has_rival=lambda: True))
-    assert _due(_state(reseedable=lambda: True)) == ["effects", "shapes", "reseed", "wider laws", "final fit"]
+    assert _due(_state(reseedable=lambda: True)) == ["effects", "shapes", "reseed", "other rival laws", "wider laws", "final fit"]
     assert "reseed the rival" in _due(_state(reseedable=lambda: True, rival_kept=True))
     assert "re-test" in _due(_state(laws_changed=lambda: {"nonlinear_stiffness"}))
-    assert _due(_state(branch_due=lambda: True)) == ["effects", "shapes", "wider laws", "rival branch", "final fit"]
+    assert _due(_state(branch_due=lambda: True)) == ["effects", "shapes", "other rival laws", "wider laws", "rival branch",
+                                                      "final fit"]
     assert _due(_state(pairs_due=lambda: True, reseedable=lambda: True)) == [
-        "effects", "shapes", "pairs", "reseed", "wider laws", "final fit"]
+        "effects", "shapes", "pairs", "reseed", "other rival laws", "wider laws", "final fit"]
 
 
 def test_a_run_whose_budget_is_spent_at_once_runs_the_first_search_and_the_final_fit_only(free_vibration):

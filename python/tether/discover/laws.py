@@ -21,7 +21,9 @@ class Law:
     the effect; ``rigs`` the rigs whose records try it when the effect is added (None: every rig);
     ``shapes`` the groups of shape terms refine_shapes may free from the final model (the search
     for effects keeps them at the classic law's values: they change a law's shape, not which
-    effects the record shows); ``rival`` the law fitted again in its place at the end (rival_law);
+    effects the record shows); ``rival`` the law fitted again in its place at the end (rival_law
+    for the hysteresis, other_rival_laws for the others), whose tie with it in a step forks the
+    rival branch;
     ``wider`` the law fitted in its place where the final model still misses the record
     (wider_law); ``added`` false for a law reached only as another's rival or wider law;
     ``starts`` the starts of a model that adds the law (base fit, new spec, scales, trace -> a list
@@ -89,7 +91,7 @@ EFFECTS = (
         # the cubic's power term: a stiffness growing from zero as a fractional power of the strain,
         # which the cubic misses near eps = 0 (a load test of the generator's power-law tether with
         # Iwan friction stopped at 2.05 x noise with the cubic)
-        Law("cubic", S.cubic_starts, shapes=(("pow_F", "pow_n"),), wider="exponential"),
+        Law("cubic", S.cubic_starts, shapes=(("pow_F", "pow_n"),), wider="exponential", rival="bilinear"),
         # in a load test the exponential law is a candidate too: a Bouc-Wen force with beta = 0 and
         # gamma < 0 is that law in disguise (dz/dx = A + |gamma| z both ways: z = (A/|gamma|)
         # (exp(|gamma| x) - 1)), and with one parameter fewer it would name hysteresis for a
@@ -99,7 +101,7 @@ EFFECTS = (
         # a braid's toe: soft while its yarns straighten, then stiff; the cubic follows a corner
         # only where it is gentle (generator B's toe-linear free vibration with dry friction:
         # 2.46 x noise with the cubic and its power term)
-        Law("bilinear", S.bilinear_starts, campaigns=False)),
+        Law("bilinear", S.bilinear_starts, campaigns=False, rival="cubic")),
         {}),
     Effect("hysteresis", "hysteresis", "none", (
         Law("boucwen", S.boucwen_starts, shapes=(("bw_n",), ("bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6"),
@@ -121,10 +123,10 @@ EFFECTS = (
     Effect("nonlinear_damping", "damping", "viscous", (
         # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
         Law("displacement", S.damping_starts, shapes=(("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
-                                     "c_table_6"),)),
+                                     "c_table_6"),), rival="coulomb"),
         # dry friction beside the viscous part: a damping that falls with amplitude, where c(x) and
         # the drag grow with it
-        Law("coulomb", S.coulomb_starts)),
+        Law("coulomb", S.coulomb_starts, rival="displacement")),
         {"load_unload": "a load test is quasi-static (no inertia, speeds near zero): damping, linear or not, "
                         "does not act in it",
          "creep": "a creep test holds its loads for hours and changes them between two samples: damping acts on "
@@ -354,7 +356,7 @@ def _without(spec: ModelSpec, effect: str) -> ModelSpec:
 
 
 #: the laws of one effect that stand in for each other: the law that won an effect's step is fitted
-#: again at the end with its rival in its place (rival_law)
+#: again at the end with its rival in its place (rival.rival_law, rival.other_rival_laws)
 RIVAL_LAWS = {e.name: tuple(law.name for law in e.laws if law.rival) for e in EFFECTS
               if any(law.rival for law in e.laws)}
 

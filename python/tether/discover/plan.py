@@ -61,6 +61,9 @@ PLAN = (
     Stage("reseed the rival", "the rival law was kept, and the reseed stage's condition holds",
           lambda s: s.rival_kept and s.reseedable(), "reseed", "as the reseed stage, for the rival law",
           "as the reseed stage"),
+    Stage("other rival laws", "the budget is not spent", lambda s: not s.budget_hit, "swap_other_rival_laws",
+          "each other named law's rival in its place (Law.rival: cubic and bilinear, c(x) and dry friction), where "
+          "the model still misses the record", "_law_judged"),
     Stage("wider laws", "the budget is not spent", lambda s: not s.budget_hit, "swap_wider_laws",
           "each named law's wider law in its place (WIDER_LAWS), where the model still misses the record",
           "_law_judged"),

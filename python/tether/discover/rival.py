@@ -125,6 +125,102 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
                         **({"extra": tuple(shapes)} if shapes else {}))
 
 
+def other_rival_laws(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
+                     rivals: dict, say: Callable[[str], None], sc=None):
+    """Every effect's law is chosen in the step that names it, beside the effects named so far and
+    before the shapes and nuisance are refitted beside it; the hysteresis's rival has a stage of its
+    own (rival_law). Where the final model still misses the record, each other named effect whose
+    law names a rival (Law.rival: the cubic and bilinear elastic laws, c(x) and dry friction) is
+    fitted again with the rival in its place, kept as a rival law is (_law_judged: a lower BIC and
+    error, the held-out prediction no worse). Its wider law has the wider-laws stage. Starts
+    (_rival_starts): the rival's own fit of the step that named the effect beside the final model's
+    other terms, the registry's starts of the rival beside the final model without the effect, and
+    for an elastic law the rival that follows the law in place over the strains the record visits.
+    ``rivals``: the step fits' parameters, by effect and law. Returns the model, its held-out error
+    and a list of Refinements."""
+    from .laws import EFFECT
+    refinements = []
+    for effect in RIVAL_LAWS:
+        law = _law_of(cur.spec, effect)
+        entry = EFFECT[effect].law(law)
+        if (effect == "hysteresis" or effect not in cur.effects or entry is None or entry.rival is None
+                or cur.rms <= CRITERIA.within_noise * sigma):
+            continue
+        rule = EFFECT[effect].law(entry.rival)
+        if rule is None or (rule.rigs is not None and trace.rig not in rule.rigs):
+            continue
+        new = _with_law(cur.spec, effect, entry.rival).for_experiment(trace.experiment)
+        own = _law_terms(effect, entry.rival)
+        starts = _rival_starts(trace, cur, new, effect, rivals.get(effect, {}).get(entry.rival, {}), sc)
+        cur, cur_held, r = _law_swapped(trace, part, first, cur, cur_held, sigma, fit, new, effect, law, starts,
+                                        lambda k, own=own: k in own, say)
+        refinements.append(r)
+    return cur, cur_held, refinements
+
+
+def _law_terms(effect: str, law: str) -> tuple:
+    """The terms of ``law`` of ``effect`` (the elastic laws', damping laws' or hysteresis laws')."""
+    from ..models import DAMPING_PARAMETERS, STIFFNESS_PARAMETERS
+    table = {"nonlinear_stiffness": STIFFNESS_PARAMETERS, "nonlinear_damping": DAMPING_PARAMETERS,
+             "hysteresis": HYSTERESIS_PARAMETERS}[effect]
+    return tuple(table.get(law, ()))
+
+
+def _rival_starts(trace: Trace, cur: ModelFit, new, effect: str, step_fit: dict, sc=None) -> list:
+    """Starts of ``new`` (``cur`` with the rival law of ``effect`` in place): the final model's other
+    terms and fitted nuisance beside the rival's terms of its step fit (``step_fit``, where there is
+    one), beside the rival matched to the elastic law in place (_elastic_matched), and the registry's
+    starts of the rival beside the final model without the effect (None: tether.fit's estimate)."""
+    from .laws import EFFECT, _without
+    from .scales import _scales
+    law, other = _law_of(cur.spec, effect), _law_of(new, effect)
+    mine = {**{k: float(v) for k, v in cur.params.items() if k in new.parameters and k not in _law_terms(effect, law)},
+            **_fitted_nuisance(cur)}
+    starts = [{**mine, **theirs} for theirs in (
+        {k: v for k, v in step_fit.items() if k in _law_terms(effect, other)},
+        _elastic_matched(trace, cur, other) if effect == "nonlinear_stiffness" else {}) if theirs]
+    reduced = _without(cur.spec, effect)
+    params = {k: float(v) for k, v in cur.params.items() if k in reduced.parameters}
+    if effect == "nonlinear_stiffness":
+        params["EA"] = _secant_stiffness(trace, cur)
+    base = replace(cur, spec=reduced, params=params)
+    for s in EFFECT[effect].law(other).starts(base, new, sc if sc is not None else _scales(trace), trace):
+        starts.append(s if s is None else {**s, **_fitted_nuisance(cur)})
+    return starts
+
+
+def _visited_strains(trace: Trace, cur: ModelFit, count: int = 200) -> np.ndarray:
+    """``count`` strains spread over those the record visits under ``cur``: the load rig's measured
+    elongation over L0; the payload's balance strain (the law's strain at the weight of the fitted
+    mass and half the line) plus the measured displacement over L0 (its fitted offset taken off)."""
+    from ..fit.elastic import elastic_inverse
+    L0 = float(trace.length_m)
+    x = np.asarray(trace.measured, float) - float(cur.params.get("offset_measured", 0.0))
+    base = 0.0
+    if trace.rig == "payload":
+        weight = (float(cur.params.get("m", trace.payload_mass_kg)) + 0.5 * float(trace.line_density_kg_m) * L0) \
+            * float(trace.gravity_m_s2)
+        base = float(elastic_inverse(cur.spec.stiffness, cur.params)(weight))
+    return base + np.linspace(float(np.min(x)), float(np.max(x)), count) / L0
+
+
+def _secant_stiffness(trace: Trace, cur: ModelFit) -> float:
+    """The linear law's EA that joins the ends of ``cur``'s elastic law over the strains the record
+    visits (the law in place, seen as the linear law a step adds its rival to)."""
+    from ..fit.elastic import elastic_tension
+    eps = _visited_strains(trace, cur, 2)
+    T = elastic_tension(cur.spec.stiffness, cur.params, eps)
+    return float((T[1] - T[0]) / (eps[1] - eps[0])) if eps[1] > eps[0] else float(cur.params.get("EA", 0.0))
+
+
+def _elastic_matched(trace: Trace, cur: ModelFit, law: str) -> dict:
+    """The elastic law ``law`` fitted by least squares to the tension of ``cur``'s elastic law over
+    the strains the record visits (_visited_strains); {} where it cannot follow it."""
+    from ..fit.elastic import elastic_from_curve, elastic_tension
+    eps = _visited_strains(trace, cur)
+    return elastic_from_curve(law, eps, elastic_tension(cur.spec.stiffness, cur.params, eps)) or {}
+
+
 def _fitted_nuisance(cur: ModelFit) -> dict:
     """The nuisance values ``cur`` fitted (the mass, the initial state, the offsets): a law put in
     another's place starts from them, not from the record's stated values."""

@@ -707,6 +707,17 @@ class Search(PairStep, RivalBranch):
         if self.rival_kept:
             self.reshape(set(self.cur.effects) - {"hysteresis"})
 
+    def swap_other_rival_laws(self) -> None:
+        """The other named effects fitted again with their laws' rivals in place (other_rival_laws),
+        where the model still misses the record, with a step candidate's work caps."""
+        base = self.candidate_cap_factor()
+        self.adopt(rival.other_rival_laws(
+            self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
+            lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
+                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms,
+                cap_factor=base),
+            self.rivals, self.say, sc=self.sc), "while a rival law was fitted")
+
     def swap_wider_laws(self) -> None:
         """The elastic law and creep fitted again with their wider laws in their place (wider_law),
         where the model still misses the record, with a step candidate's work caps."""

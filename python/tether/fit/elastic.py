@@ -120,6 +120,36 @@ def elastic_inverse(stiffness: str, params: Mapping[str, float]):
     return lambda T: np.asarray(T, float) / EA
 
 
+def elastic_tension(stiffness: str, params: Mapping[str, float], eps):
+    """Tension of the elastic law ``stiffness`` (linear, cubic, exponential or bilinear) with
+    ``params`` at strain ``eps``."""
+    if stiffness == "cubic":
+        return cubic_tension(params, eps)
+    if stiffness == "bilinear":
+        return bilinear_tension(params, eps)
+    if stiffness == "exponential":
+        return exponential_tension(params, eps)
+    return float(params.get("EA", 3500.0)) * np.asarray(eps, float)
+
+
+def cubic_from_curve(eps: np.ndarray, T: np.ndarray) -> dict | None:
+    """a1, a2, a3 (no power term) from tension samples ``T`` along the strain ``eps`` by least
+    squares; None without three distinct strains or where the law does not rise at the samples."""
+    e, F = np.asarray(eps, float), np.asarray(T, float)
+    if np.unique(e).size < 3:
+        return None
+    a = np.linalg.lstsq(np.column_stack([e, e ** 2, e ** 3]), F, rcond=None)[0]
+    slope = a[0] + e * (2 * a[1] + 3 * a[2] * e)
+    return {"a1": float(a[0]), "a2": float(a[1]), "a3": float(a[2]), "pow_F": 0.0} if np.all(slope > 0) else None
+
+
+def elastic_from_curve(stiffness: str, eps: np.ndarray, T: np.ndarray) -> dict | None:
+    """The terms of the elastic law ``stiffness`` (cubic, exponential or bilinear) that follow the
+    tension samples ``T`` along the strain ``eps`` best (least squares); None where that law cannot."""
+    fitted = {"cubic": cubic_from_curve, "exponential": exponential_from_curve, "bilinear": bilinear_from_curve}
+    return fitted[stiffness](eps, T) if stiffness in fitted else None
+
+
 def exponential_from_taylor(k1: float, k2: float, L0: float, weight: float) -> dict | None:
     """exp_F, exp_eps from the Taylor coefficients about the balance, F(eps_b + x/L0) - weight =
     k1 x + k2 x^2 + ...: the law's derivatives are (F + exp_F)/exp_eps and (F + exp_F)/exp_eps^2,
