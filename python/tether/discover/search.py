@@ -709,25 +709,24 @@ class Search(PairStep, RivalBranch):
 
     def swap_other_rival_laws(self) -> None:
         """The other named effects fitted again with their laws' rivals in place (other_rival_laws),
-        where the model still misses the record, with a step candidate's work caps."""
-        base = self.candidate_cap_factor()
-        self.adopt(rival.other_rival_laws(
-            self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
-            lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
-                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms,
-                cap_factor=base),
-            self.rivals, self.say, sc=self.sc), "while a rival law was fitted")
+        where the model still misses the record."""
+        self.swap_laws(rival.other_rival_laws, "while a rival law was fitted", self.rivals, self.say, sc=self.sc)
 
     def swap_wider_laws(self) -> None:
         """The elastic law and creep fitted again with their wider laws in their place (wider_law),
-        where the model still misses the record, with a step candidate's work caps."""
+        where the model still misses the record."""
+        self.swap_laws(rival.wider_law, "while a wider law was fitted", self.say)
+
+    def swap_laws(self, stage: Callable, where: str, *args, **options) -> None:
+        """A last stage that puts other laws in place (rival.py's ``stage``), its fits with a step
+        candidate's work caps, its result adopted (``where``: for the stop reason)."""
         base = self.candidate_cap_factor()
-        self.adopt(rival.wider_law(
+        self.adopt(stage(
             self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
                 tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms,
                 cap_factor=base),
-            self.say), "while a wider law was fitted")
+            *args, **options), where)
 
     def final_fit(self) -> None:
         """The final model fitted once more from the searched optimum (WHOLE_RECORD_ITERATIONS), with
