@@ -159,10 +159,10 @@ def other_rival_laws(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_h
 
 
 def _law_terms(effect: str, law: str) -> tuple:
-    """The terms of ``law`` of ``effect`` (the elastic laws', damping laws' or hysteresis laws')."""
-    from ..models import DAMPING_PARAMETERS, STIFFNESS_PARAMETERS
+    """The terms of ``law`` of ``effect`` (the elastic, damping, hysteresis or creep laws')."""
+    from ..models import CREEP_PARAMETERS, DAMPING_PARAMETERS, STIFFNESS_PARAMETERS
     table = {"nonlinear_stiffness": STIFFNESS_PARAMETERS, "nonlinear_damping": DAMPING_PARAMETERS,
-             "hysteresis": HYSTERESIS_PARAMETERS}[effect]
+             "hysteresis": HYSTERESIS_PARAMETERS, "creep": CREEP_PARAMETERS}[effect]
     return tuple(table.get(law, ()))
 
 
@@ -534,10 +534,8 @@ def _wider_law_starts(trace: Trace, cur: ModelFit, new, effect: str, law: str) -
     current fit's) and, for the exponential law, matched to the cubic's stiffness and its slope at
     the record's typical strain. (tether.fit's estimate of the whole model is the first start again
     but for the other terms, which the current fit has better.)"""
-    from ..models import CREEP_PARAMETERS, STIFFNESS_PARAMETERS
-    own = STIFFNESS_PARAMETERS if effect == "nonlinear_stiffness" else CREEP_PARAMETERS
-    mine = {k: float(v) for k, v in cur.params.items() if k in new.parameters and k not in own[law]}
-    estimate = {k: v for k, v in _estimated(trace, new, mine).items() if k in own[_law_of(new, effect)]}
+    mine = {k: float(v) for k, v in cur.params.items() if k in new.parameters and k not in _law_terms(effect, law)}
+    estimate = {k: v for k, v in _estimated(trace, new, mine).items() if k in _law_terms(effect, _law_of(new, effect))}
     mine.update(_fitted_nuisance(cur))
     starts = [{**mine, **estimate}]
     if effect == "nonlinear_stiffness":
