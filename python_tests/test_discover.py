@@ -48,10 +48,11 @@ def _strict(token):
 
 
 def _record_and_part(stem):
-    """A record read back, its noise estimate and scales, and the first part held-out tests fit."""
+    """A record read back, its noise estimate and scales, the part held-out tests fit and the
+    samples they hold out (samples.heldout_split)."""
     tr = read_trace(stem)
-    part = samples._truncated(tr, judge.CRITERIA.fit_part)
-    return tr, D.estimate_noise(tr).sigma, scales._scales(tr), part, len(part.time), scales._scales(part)
+    part, held_out = samples.heldout_split(tr, judge.CRITERIA.fit_part)
+    return tr, D.estimate_noise(tr).sigma, scales._scales(tr), part, held_out, scales._scales(part)
 
 
 def _rerun_rms(run_cli, tmp_path, stem, params, measured) -> float:
@@ -201,7 +202,7 @@ def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, c
     stem, gen = _write(tmp_path, "forced_iwan_slack", "forced", {"hysteresis", "slack"}, 30, noise=1e-4,
                        rate=100.0, duration_s=10.0)
     assert gen.meta["hidden"]["laws"]["hysteresis"] == "iwan"
-    tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
+    tr, sigma, sc, part, held_out, sc_part = _record_and_part(stem)
     lin = D.fit_model(tr, parse_model("linear", "forced"), (), [None], sc)
     iwan = D.fit_model(tr, parse_model("linear+iwan", "forced"), ("hysteresis",), [None], sc)
     bw_spec = parse_model("linear+boucwen", "forced")
@@ -209,13 +210,13 @@ def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, c
     spec = parse_model("linear+boucwen+slack", "forced")
     cur = D.fit_model(tr, spec, ("hysteresis", "slack"), [dict(bw.params)], sc)
     cur_part = D.fit_model(part, spec, cur.effects, [cur.params], sc_part)
-    held = fitting._heldout(tr, spec, cur_part.params, first)
+    held = fitting._heldout(tr, spec, cur_part.params, held_out)
 
     def fit(t, sp, eff, starts, baseline_rms=None, cap_factor=1.0):
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, baseline_rms=baseline_rms)
 
     lines = []
-    new, new_held, rec = rival.rival_law(tr, part, first, cur, held, sigma, fit, {"iwan": dict(iwan.params)},
+    new, new_held, rec = rival.rival_law(tr, part, held_out, cur, held, sigma, fit, {"iwan": dict(iwan.params)},
                                      ["slack", "hysteresis"], lines.append)
     with capsys.disabled():
         print(f"\nFIGURE rival law, forced Iwan + slack: Bouc-Wen + slack {cur.rms / sigma:.2f} x noise "
@@ -225,7 +226,7 @@ def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, c
     assert new.rms < 0.6 * cur.rms and new_held < 0.7 * held
     # where the Iwan bank's fit failed in the hysteresis step, the rival starts from tether.fit's
     # data-based estimate of its terms, and wins all the same (from that start: 5.33 x noise at 100 Hz)
-    est, est_held, est_rec = rival.rival_law(tr, part, first, cur, held, sigma, fit, {}, ["slack", "hysteresis"],
+    est, est_held, est_rec = rival.rival_law(tr, part, held_out, cur, held, sigma, fit, {}, ["slack", "hysteresis"],
                                              lines.append)
     with capsys.disabled():
         print(f"FIGURE rival law without the step's fit of the bank: {est.model} {est.rms / sigma:.2f} x noise "
@@ -235,7 +236,7 @@ def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, c
     # a model within the unexplained gap (1.3 x noise: gap 0.83 sigma) with no effect named after
     # its hysteresis is left alone
     near = replace(cur, rms=1.3 * sigma)
-    same, _, none = rival.rival_law(tr, part, first, near, held, sigma, fit, {"iwan": dict(iwan.params)},
+    same, _, none = rival.rival_law(tr, part, held_out, near, held, sigma, fit, {"iwan": dict(iwan.params)},
                                 ["slack", "hysteresis"], lines.append)
     assert same is near and none is None
 
@@ -254,26 +255,26 @@ def test_a_power_law_stiffness_is_followed_by_the_power_term_and_brings_back_the
                        noise=2e-4, rate=5.0, stiffness_law="power")
     hidden = gen.meta["hidden"]
     assert hidden["laws"]["elastic"] == "power" and hidden["laws"]["hysteresis"] == "iwan"
-    tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
+    tr, sigma, sc, part, held_out, sc_part = _record_and_part(stem)
     spec = parse_model("cubic+boucwen", "load_unload")
     effects = ("nonlinear_stiffness", "hysteresis")
     shape = ("bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6")
     bw = D.fit_model(tr, spec, effects, [None], sc)
     cur = D.fit_model(tr, spec, effects, [bw.params], sc, extra=shape)
     iwan = D.fit_model(tr, parse_model("cubic+iwan", "load_unload"), effects, [None], sc)
-    held = fitting._heldout(tr, spec, D.fit_model(part, spec, effects, [cur.params], sc_part, extra=shape).params, first)
+    held = fitting._heldout(tr, spec, D.fit_model(part, spec, effects, [cur.params], sc_part, extra=shape).params, held_out)
 
     def fit(t, sp, eff, starts, extra=(), own_thread=False, baseline_rms=None, cap_factor=1.0):
         extra = tuple(extra) + tuple(k for k in shape if k in sp.parameters and k not in extra)
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra, baseline_rms=baseline_rms)
 
     lines = []
-    powered, powered_held, refs = refine.refine_shapes(tr, part, first, cur, held, sigma, fit, sc, lines.append,
+    powered, powered_held, refs = refine.refine_shapes(tr, part, held_out, cur, held, sigma, fit, sc, lines.append,
                                                   skip={"hysteresis"})
     assert [r.parameters for r in refs] == [("pow_F", "pow_n")], lines
     assert refs[0].accepted, lines
     assert powered.rms < cur.rms and powered_held <= held
-    new, new_held, rec = rival.rival_law(tr, part, first, powered, powered_held, sigma, fit, {"iwan": dict(iwan.params)},
+    new, new_held, rec = rival.rival_law(tr, part, held_out, powered, powered_held, sigma, fit, {"iwan": dict(iwan.params)},
                                      list(effects), lines.append, elastic_reshaped=True)
     noise = hidden["noise_sigma_m"]
     with capsys.disabled():
@@ -288,7 +289,7 @@ def test_a_power_law_stiffness_is_followed_by_the_power_term_and_brings_back_the
     # without the power term kept, a hysteresis named last is left alone where the model is within
     # the unexplained gap (1.3 x noise)
     near = replace(cur, rms=1.3 * sigma)
-    same, _, none = rival.rival_law(tr, part, first, near, held, sigma, fit, {"iwan": dict(iwan.params)},
+    same, _, none = rival.rival_law(tr, part, held_out, near, held, sigma, fit, {"iwan": dict(iwan.params)},
                                 list(effects), lines.append)
     assert same is near and none is None
 
@@ -302,7 +303,7 @@ def test_a_shape_that_halves_the_gap_is_kept_without_asking_the_held_out_part(tm
     model's: a shape that halves the gap is kept and no fit of the first part is asked; one that
     does not is refused on the held-out part."""
     stem, _ = _write(tmp_path, "fv_iwan", "free_vibration", {"hysteresis"}, 27, noise=1e-4, rate=100.0)
-    tr, sigma, sc, part, first, _ = _record_and_part(stem)
+    tr, sigma, sc, part, held_out, _ = _record_and_part(stem)
     spec = models.parse_model("linear+iwan", tr.experiment)
     cur = replace(D.fit_model(tr, spec, ("hysteresis",), [None], sc, max_iterations=2), rms=6.0 * sigma)
     held = 9.0 * sigma
@@ -314,7 +315,7 @@ def test_a_shape_that_halves_the_gap_is_kept_without_asking_the_held_out_part(tm
             asked.append(t is part)
             return replace(cur, rms=rms * sigma, free=list(cur.free) + list(extra), shape=tuple(extra))
 
-        new, new_held, refs = refine.refine_shapes(tr, part, first, cur, held, sigma, fit, sc, lambda s: None)
+        new, new_held, refs = refine.refine_shapes(tr, part, held_out, cur, held, sigma, fit, sc, lambda s: None)
         assert [r.accepted for r in refs] == [kept], [r.verdict for r in refs]
         assert (new.rms == rms * sigma) is kept and any(asked) is not kept
         assert "held-out test not asked" in refs[0].verdict if kept else "held-out part gets worse" in refs[0].verdict
@@ -332,7 +333,7 @@ def test_idle_iwan_elements_restart_where_the_fit_left_them(tmp_path):
     stem, gen = _write(tmp_path, "fv_iwan", "free_vibration", {"hysteresis"}, 27, noise=1e-5, rate=200.0,
                        duration_s=10.0)
     assert gen.meta["hidden"]["laws"]["hysteresis"] == "iwan"
-    tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
+    tr, sigma, sc, part, held_out, sc_part = _record_and_part(stem)
     spec = parse_model("linear+iwan", "free_vibration")
     ref = D.fit_model(tr, spec, ("hysteresis",), [None], sc)
     k = np.array([ref.params[n] for n in IWAN_K])
@@ -345,7 +346,7 @@ def test_idle_iwan_elements_restart_where_the_fit_left_them(tmp_path):
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra)
 
     lines = []
-    new, held, rec = rival.restart_idle_elements(tr, part, first, idle, float("inf"), sigma, fit, lines.append)
+    new, held, rec = rival.restart_idle_elements(tr, part, held_out, idle, float("inf"), sigma, fit, lines.append)
     assert rec is not None and rec.accepted and rec.restart, lines
     assert new.rms <= 1.05 * ref.rms, (new.rms / sigma, ref.rms / sigma)
     live = [n for n in IWAN_K if new.params[n] >= rival.IWAN_IDLE_SHARE * k.sum()]
@@ -353,7 +354,7 @@ def test_idle_iwan_elements_restart_where_the_fit_left_them(tmp_path):
     assert math.isfinite(held)
     bw_spec = parse_model("linear+boucwen", "free_vibration")
     bw = D.fit_model(tr, bw_spec, ("hysteresis",), [None], sc)
-    same, _, none = rival.restart_idle_elements(tr, part, first, bw, float("inf"), sigma, fit, lines.append)
+    same, _, none = rival.restart_idle_elements(tr, part, held_out, bw, float("inf"), sigma, fit, lines.append)
     assert same is bw and none is None
 
 
@@ -384,7 +385,7 @@ def test_idle_iwan_elements_below_the_live_ones_move_into_their_gaps(tmp_path):
     stem, gen = _write(tmp_path, "forced_iwan_slack", "forced", {"hysteresis", "slack"}, 30, noise=1e-4,
                        rate=100.0, duration_s=10.0)
     assert gen.meta["hidden"]["laws"]["hysteresis"] == "iwan"
-    tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
+    tr, sigma, sc, part, held_out, sc_part = _record_and_part(stem)
     spec = parse_model("linear+iwan+slack", "forced")
     est = D.fit_model(tr, spec, ("hysteresis", "slack"), [None], sc)
     k = np.array([est.params[n] for n in IWAN_K])
@@ -397,7 +398,7 @@ def test_idle_iwan_elements_below_the_live_ones_move_into_their_gaps(tmp_path):
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra)
 
     lines = []
-    new, held, rec = rival.restart_idle_elements(tr, part, first, est, float("inf"), sigma, fit, lines.append)
+    new, held, rec = rival.restart_idle_elements(tr, part, held_out, est, float("inf"), sigma, fit, lines.append)
     assert rec is not None and rec.accepted and "moved into the widest gaps" in rec.verdict, lines
     assert new.rms < 1.5 * sigma, new.rms / sigma
     assert math.isfinite(held)
@@ -419,7 +420,7 @@ def test_a_bank_with_an_element_a_fit_switched_off_is_a_start_the_next_fit_accep
 
     stem, _ = _write(tmp_path, "fv_iwan", "free_vibration", {"hysteresis"}, 27, noise=1e-5, rate=200.0,
                      duration_s=4.0)
-    tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
+    tr, sigma, sc, part, held_out, sc_part = _record_and_part(stem)
     spec = parse_model("linear+iwan", "free_vibration")
     est = D.fit_model(tr, spec, ("hysteresis",), [None], sc)
     bank = [n for n in IWAN_K if n in est.free]
@@ -445,19 +446,19 @@ def test_a_finer_iwan_bank_follows_friction_spread_over_more_elements(tmp_path):
     stem, gen = _write(tmp_path, "fv_iwan", "free_vibration", {"hysteresis"}, 27, noise=1e-5, rate=200.0,
                        duration_s=10.0)
     assert gen.meta["hidden"]["params"]["hyst_n"] == 12
-    tr, sigma, sc, part, first, sc_part = _record_and_part(stem)
+    tr, sigma, sc, part, held_out, sc_part = _record_and_part(stem)
     spec = parse_model("linear+iwan", "free_vibration")
 
     def fit(t, sp, eff, starts, extra=(), cap_factor=1.0, **engine):      # no work cap here to scale
         return D.fit_model(t, sp, eff, starts, sc_part if t is part else sc, extra=extra, **engine)
 
     est = D.fit_model(tr, spec, ("hysteresis",), [None], sc)
-    held = fitting._heldout(tr, spec, fit(part, spec, est.effects, [est.params]).params, first)
-    eight, held8, _ = rival.restart_idle_elements(tr, part, first, est, held, sigma, fit, lambda s: None)
+    held = fitting._heldout(tr, spec, fit(part, spec, est.effects, [est.params]).params, held_out)
+    eight, held8, _ = rival.restart_idle_elements(tr, part, held_out, est, held, sigma, fit, lambda s: None)
     assert sum(n in eight.free for n in IWAN_K) == 8
     assert eight.rms > 1.3 * sigma, eight.rms / sigma
     lines = []
-    new, new_held, rec = rival.finer_bank(tr, part, first, eight, held8, sigma, fit, lines.append)
+    new, new_held, rec = rival.finer_bank(tr, part, held_out, eight, held8, sigma, fit, lines.append)
     assert rec is not None and rec.accepted and rec.finer, lines
     assert all(n in new.free for n in IWAN_K + IWAN_EPS)
 
@@ -468,7 +469,7 @@ def test_a_finer_iwan_bank_follows_friction_spread_over_more_elements(tmp_path):
     live = [n for n in IWAN_K if new.params[n] >= rival.IWAN_IDLE_SHARE * sum(new.params[k] for k in IWAN_K)]
     assert len(live) > 8, new.params
     # (judged against half the noise, so that it is not left alone for being within the noise)
-    same, _, none = rival.finer_bank(tr, part, first, new, new_held, 0.5 * sigma, fit, lines.append)
+    same, _, none = rival.finer_bank(tr, part, held_out, new, new_held, 0.5 * sigma, fit, lines.append)
     assert same is new and none is None
 
 
@@ -966,7 +967,7 @@ def test_the_rival_law_starts_from_the_fitted_nuisance_and_beside_the_model(tmp_
 
     stem, gen = _write(tmp_path, "cut", "forced", {"hysteresis", "slack"}, 7, noise=1e-4, rate=100.0, duration_s=6.0,
                        nuisance=True, mass_factor=1.15, offset_noise=2.0, preroll_s=3.0)
-    tr, sigma, sc, part, first, _ = _record_and_part(stem)
+    tr, sigma, sc, part, held_out, _ = _record_and_part(stem)
     nz = D.nuisance_parameters(tr)
     lin = D.fit_model(tr, parse_model("linear", "forced"), (), [nuisance_start(tr, nz), None], sc, nuisance=nz)
     spec = parse_model("linear+boucwen+slack", "forced")
@@ -978,7 +979,7 @@ def test_the_rival_law_starts_from_the_fitted_nuisance_and_beside_the_model(tmp_
         seen.append((list(starts), tuple(extra)))
         return _replace(cur, ok=False, message="recorded")
 
-    rival.rival_law(tr, part, first, cur, 10 * sigma, sigma, fit, {}, ["hysteresis", "slack"], lambda s: None,
+    rival.rival_law(tr, part, held_out, cur, 10 * sigma, sigma, fit, {}, ["hysteresis", "slack"], lambda s: None,
                     incumbent_shaped=True)
     (begins, extra), = seen
     assert extra == tuple(IWAN_EPS_FIT)
@@ -1023,7 +1024,7 @@ def test_a_rival_that_loses_only_on_the_held_out_part_gets_its_reseeding_moves_f
 
     def run(reseed):
         orig = rival._heldout
-        rival._heldout = lambda trace, spec, params, first: held[id(rival_fit)]
+        rival._heldout = lambda trace, spec, params, held_out: held[id(rival_fit)]
         try:
             return rival._law_swapped(whole, part, 0, cur, held[id(cur)], sigma, fit, rival_fit.spec,
                                       "hysteresis", "boucwen", [None], lambda k: True, lambda s: None, reseed=reseed)

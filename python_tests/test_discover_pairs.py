@@ -62,11 +62,12 @@ def _search(monkeypatch, outcomes: dict, held: dict) -> tuple[search.Search, lis
         return outcomes[sp.canonical]
 
     monkeypatch.setattr(pairs, "candidate_starts", lambda *a: [None])
-    monkeypatch.setattr(pairs, "_heldout", lambda tr, spec, params, first: held[spec.canonical] * SIGMA)
+    monkeypatch.setattr(pairs, "_heldout", lambda tr, spec, params, held_out: held[spec.canonical] * SIGMA)
     s.fit = fit
     s.part_fit = lambda c, own_thread=False: c.fit
     s.cur, s.cur_held, s.fits = LINEAR, 25.0 * SIGMA, [LINEAR]
-    s.sigma, s.n, s.sc, s.trace, s.part, s.sc_part, s.first = SIGMA, N, None, _Trace(), None, None, 2400
+    s.sigma, s.n, s.sc, s.trace, s.part, s.sc_part = SIGMA, N, None, _Trace(), None, None
+    s.held_out = np.arange(N) >= 2400
     s.w_sim_start, s.n_free_start = 1, 3
     s.extension_cap_factor = lambda m: 1.0
     s.base_effects, s.budget_hit, s.say = (), False, lambda line: None

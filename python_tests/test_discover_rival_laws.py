@@ -33,7 +33,7 @@ def _toe_tension(eps):
 def toe_record(tmp_path_factory):
     """A free vibration of 1.5 kg on a toe-linear tether drawn by the engine (balance strain 0.0097,
     released 0.05 m above it: the strain falls to 0.0066, into the toe's rounded corner; 6 s at
-    250 Hz, noise 5e-5 m), its first part, and the cubic model's fit to it from the linear one's (as
+    250 Hz, noise 5e-5 m), the part held-out tests fit and the samples they hold out, and the cubic model's fit to it from the linear one's (as
     a step adds the cubic: 25.7 x noise)."""
     d = tmp_path_factory.mktemp("rival_laws")
     t = np.arange(0.0, 6.0, 0.004)
@@ -46,13 +46,13 @@ def toe_record(tmp_path_factory):
         '"payload_mass_kg": 1.5, "initial_displacement_m": %s, "initial_velocity_m_s": 0.0}' % X0)
     np.savetxt(d / "toe.csv", np.column_stack([t, x]), delimiter=",", header="time,displacement", comments="")
     tr = read_trace(d / "toe")
-    part = samples._truncated(tr, judge.CRITERIA.fit_part)
+    part, held_out = samples.heldout_split(tr, judge.CRITERIA.fit_part)
     sc = scales._scales(tr)
     cubic = parse_model("linear+cubic", tr.experiment)
     lin = D.fit_model(tr, parse_model("linear", tr.experiment), (), [None], sc)
     cur = D.fit_model(tr, cubic, ("nonlinear_stiffness",), [{**lin.params, "a1": lin.params["EA"], "a2": 0.0,
                                                              "a3": 0.0}, None], sc)
-    return tr, part, sc, cur
+    return tr, part, held_out, sc, cur
 
 
 def _fit(sc, sc_part, part):
@@ -82,12 +82,12 @@ def test_a_cubic_that_misses_a_toe_gives_way_to_its_rival_the_bilinear_law(toe_r
     """The cubic fitted to the toe-linear record misses it (above CRITERIA.within_noise); the stage
     fits the bilinear law in its place and keeps it: the error falls to the noise, and the toe's two
     slopes and corner are the engine's within 2 %."""
-    tr, part, sc, cur = toe_record
+    tr, part, held_out, sc, cur = toe_record
     assert cur.ok and cur.rms > judge.CRITERIA.within_noise * NOISE, cur.rms / NOISE
     part_fit = D.fit_model(part, cur.spec, cur.effects, [cur.params], scales._scales(part))
-    held = _heldout(tr, cur.spec, part_fit.params, len(part.time))
+    held = _heldout(tr, cur.spec, part_fit.params, held_out)
     said = []
-    new, new_held, refs = rival.other_rival_laws(tr, part, len(part.time), cur, held, NOISE,
+    new, new_held, refs = rival.other_rival_laws(tr, part, held_out, cur, held, NOISE,
                                                  _fit(sc, scales._scales(part), part), {}, said.append, sc=sc)
     (r,) = refs
     print(f"FIGURE rival law on a toe-linear free vibration: cubic {cur.rms / NOISE:.2f} x noise -> "
@@ -102,11 +102,11 @@ def test_a_cubic_that_misses_a_toe_gives_way_to_its_rival_the_bilinear_law(toe_r
 
 def test_a_model_within_the_noise_tries_no_rival(toe_record):
     """Where the model reproduces the record within CRITERIA.within_noise, no rival is fitted."""
-    tr, part, sc, cur = toe_record
+    tr, part, held_out, sc, cur = toe_record
     calls = []
     within = ModelFit(spec=cur.spec, effects=cur.effects, params=cur.params, free=cur.free,
                      rms=NOISE, predicted=cur.predicted)
-    out = rival.other_rival_laws(tr, part, len(part.time), within, NOISE, NOISE,
+    out = rival.other_rival_laws(tr, part, held_out, within, NOISE, NOISE,
                                  lambda *a, **k: calls.append(a), {}, lambda s: None, sc=sc)
     assert calls == [] and out[0] is within and out[2] == []
 

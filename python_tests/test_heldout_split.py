@@ -1,6 +1,7 @@
 """The held-out test's split of a record (discover.samples.heldout_split): the last part of the
-record, and in a creep test the last part of each load level, which a fit of the rest never sees
-(Trace.fitted_samples, the engine's sample weights)."""
+record, and in a load-controlled record the last part of each stretch of the load (a ramp up, a
+ramp down, a hold), which a fit of the rest never sees (Trace.fitted_samples, the engine's sample
+weights)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import copy
 
 import numpy as np
 
-from tether.discover.samples import heldout_split, load_levels
+from tether.discover.samples import heldout_split, load_stretches
 from tether.fit import fit_traces
 from tether.fit.experiments import predict, trace_experiment
 from tether.models import parse_model
@@ -29,14 +30,46 @@ def _creep_test(load_noise: float = 0.0, seed: int = 5) -> Trace:
 
 def test_a_creep_test_holds_out_the_last_part_of_each_load_level():
     tr = _creep_test(load_noise=0.5)   # a measured load: its noise is no level change
-    assert load_levels(tr) == [(0, 1), (1, 721), (721, 1261)]
+    assert load_stretches(tr) == [(0, 721), (721, 1261)]   # the 1 N sample at t = 0 joins the hold after it
     part, held = heldout_split(tr, 0.6)
     expected = np.zeros(1261, bool)
-    expected[1 + 432:721] = True       # 40 % of the hold's 720 samples
+    expected[433:721] = True           # 40 % of the hold's 721 samples
     expected[721 + 324:1261] = True    # 40 % of the recovery's 540
     assert np.array_equal(held, expected)
     # the fit simulates the whole record and sees the rest
     assert np.array_equal(part.time, tr.time) and np.array_equal(part.fitted_samples, ~expected)
+
+
+def _load_unload_test(load_noise: float, seed: int = 2) -> tuple[Trace, list]:
+    """A load test of a linear tether sampled each second: 5 N, up to 100 N over 60 s, held 120 s,
+    down to 40 N over 30 s, up to 80 N over 20 s, down to 5 N over 38 s, held 90 s (the second
+    generator's load-unload schedule); and the corners of its load, the samples where each stretch
+    begins."""
+    corners = [0, 60, 180, 210, 230, 268, 359]
+    levels = [5.0, 100.0, 100.0, 40.0, 80.0, 5.0, 5.0]
+    t = np.arange(359.0)
+    load = np.interp(t, corners, levels)
+    load = load + load_noise * np.random.default_rng(seed).standard_normal(load.size)
+    tr = Trace.from_arrays(t, experiment="load_unload", length_m=L0, load=load, elongation=load * L0 / EA,
+                           name="load_unload_test")
+    return tr, corners
+
+
+def test_a_load_test_holds_out_the_last_part_of_each_ramp_and_hold():
+    """Each ramp and hold of the load is a stretch, cut at its corners (within a sample where the
+    load is measured with noise of 0.2 N, a fifth of its change per sample on the slowest ramp); the
+    fit of the part sees the first 60 % of each, so it sees the load fall and the recovery's hold."""
+    for noise in (0.0, 0.2):
+        tr, corners = _load_unload_test(noise)
+        got = load_stretches(tr)
+        assert len(got) == len(corners) - 1, (noise, got)
+        assert got[-1][1] == 359 and all(abs(a - c) <= 1 for (a, _), c in zip(got, corners[:-1])), (noise, got)
+        part, held = heldout_split(tr, 0.6)
+        for a, b in got:
+            seen = np.flatnonzero(~held[a:b])
+            assert seen.size and seen[-1] == seen.size - 1 and abs(seen.size - 0.6 * (b - a)) <= 0.5, (a, b)
+        falling = np.r_[np.diff(tr.input) < 0, False]
+        assert np.any(falling & part.fitted_samples) and np.any(falling & held)
 
 
 def test_other_records_hold_out_their_last_part():

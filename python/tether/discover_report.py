@@ -45,12 +45,13 @@ def plot_models(d, path: Path) -> None:
             for j, w in enumerate(disagreement(tr, f, sigma)):
                 ax2.axvspan(w.start, w.end, color="orange", alpha=0.25,
                             label="residual above the noise" if j == 0 else None)
-        ax2.axvline(d.heldout_start, color="k", lw=0.6, ls=":")
+        for j, (a, b) in enumerate(d.heldout_spans or [(d.heldout_start, float(t[-1]))]):
+            ax2.axvspan(a, b, color="0.5", alpha=0.12, lw=0, label="held out" if j == 0 else None)
         ax2.set_ylabel("residual [m]")
         ax2.legend(loc="upper right", fontsize=7)
         ax2.grid(alpha=0.3)
         if i == k - 1:
-            ax2.set_xlabel("time [s]  (dotted: held-out part begins)")
+            ax2.set_xlabel("time [s]  (grey: the samples the held-out test predicts)")
         if load_test:
             ax3 = fig.add_subplot(gs[2 * i:2 * i + 2, 1])
             ax3.plot(tr.measured, tr.input, ".", ms=1.5, color="0.55", label="measured")

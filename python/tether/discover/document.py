@@ -92,6 +92,7 @@ def discovery_document(d: Discovery) -> dict:
         "effects": effect_verdicts(d),
         "unexplained": unexplained(d),
         "heldout_from_s": d.heldout_start,
+        "heldout_spans_s": [list(span) for span in d.heldout_spans],
         "steps": steps,
         "removed": [{"effect": r.effect, "model_before": r.model_before, "model_after": r.model_after,
                      "rmse_before": r.rms_before, "rmse_after": r.rms_after, "reason": r.reason}

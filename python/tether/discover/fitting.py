@@ -352,11 +352,13 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
                     intervals={k: (float(a), float(b)) for k, (a, b) in best.ci95.items()})
 
 
-def _heldout(trace: Trace, spec: ModelSpec, params: dict, first: int) -> float:
+def _heldout(trace: Trace, spec: ModelSpec, params: dict, held_out: np.ndarray) -> float:
+    """The RMS error of the model with ``params`` on the held-out samples of the record (``held_out``:
+    True per sample, samples.heldout_split); inf where it does not simulate."""
     try:
         y = predict(trace, spec, params)
     except RuntimeError:
         return float("inf")
-    r = y[first:] - np.asarray(trace.measured, float)[first:]
+    r = (y - np.asarray(trace.measured, float))[held_out]
     v = float(np.sqrt(np.mean(r ** 2)))
     return v if math.isfinite(v) else float("inf")

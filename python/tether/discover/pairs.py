@@ -105,7 +105,7 @@ class PairStep:
         first = replace(lead, model=fm.model, added_parameters=dk, rms=fm.rms, bic_change=bic, fit=fm,
                         part_fit=None, outranked_by="")
         first.part_fit = pf = self.part_fit(first)
-        held = _heldout(self.trace, fm.spec, pf.params, self.first) if pf.ok else float("inf")
+        held = _heldout(self.trace, fm.spec, pf.params, self.held_out) if pf.ok else float("inf")
         ok, held_why = heldout_verdict(self.sigma, self.cur_held, held, self.cur.rms, fm.rms)
         self.say(f"  {lead.effect} and {e}: held-out RMS error {held / self.sigma:.2f} x noise (was "
                  f"{self.cur_held / self.sigma:.2f}): {held_why}")

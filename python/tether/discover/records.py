@@ -89,6 +89,7 @@ class Discovery:
     stop_reason: str
     seconds: float
     heldout_start: float            # time where the held-out part begins [s]
+    heldout_spans: list = field(default_factory=list)   # (first, last) time [s] of each held-out stretch
     removals: list = field(default_factory=list)   # effects dropped again (Removal)
     refinements: list = field(default_factory=list)  # shape terms tried at the end (Refinement)
     searched_every: int = 1         # the search ran on every k-th sample (search_thinning)

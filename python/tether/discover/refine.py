@@ -34,7 +34,7 @@ def _shape_groups(cur: ModelFit, skip=frozenset()) -> list:
     return [(e, g) for e in cur.effects if e not in skip for g in SHAPE_TERMS.get((e, _law_of(cur.spec, e)), ())]
 
 
-def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
+def refine_shapes(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit, cur_held: float, sigma: float, fit,
                   sc: _Scales, say: Callable[[str], None], skip=frozenset()):
     """The last stage: the effects are named; where the model still misses the record, free the
     shape terms of a named effect's law (SHAPE_TERMS), one group at a time from the final model.
@@ -75,7 +75,7 @@ def refine_shapes(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held
         held = float("nan")
         if i in part_fits:
             pf = part_fits[i]
-            held = _heldout(trace, cur.spec, pf.params, first) if pf.ok else float("inf")
+            held = _heldout(trace, cur.spec, pf.params, held_out) if pf.ok else float("inf")
         ok, verdict = _shape_judged(cur.rms, fm.rms, bic, cur_held, held, sigma,
                                     f"BIC changes by {bic:+.1f}: the terms do not earn their place")
         r = Refinement(effect, tuple(group), cur.rms, fm.rms, cur_held, held, bic, ok, verdict,

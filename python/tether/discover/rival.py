@@ -60,7 +60,7 @@ def _estimated(trace: Trace, spec, fixed: dict | None = None) -> dict:
     return {k: v for k, v in initial_estimate([trace], spec, fixed=fixed).items() if not k.startswith("_")}
 
 
-def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
+def rival_law(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit, cur_held: float, sigma: float, fit,
               rivals: dict, added: Sequence[str], say: Callable[[str], None], elastic_reshaped: bool = False,
               incumbent_shaped: bool = False, reseed: Callable | None = None, sc=None):
     """An effect's law is chosen in the step that names the effect, beside the effects named so far;
@@ -120,12 +120,12 @@ def rival_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
     shapes = max(SHAPE_TERMS.get((effect, other), ((),)), key=len) if incumbent_shaped else ()
     if shapes:
         factor *= SHAPED_RIVAL_CAP_FACTOR
-    return _law_swapped(trace, part, first, cur, cur_held, sigma, fit, new, effect, law, starts,
+    return _law_swapped(trace, part, held_out, cur, cur_held, sigma, fit, new, effect, law, starts,
                         lambda k: k in HYSTERESIS_PARAMETERS[other], say, reseed=reseed, cap_factor=factor,
                         **({"extra": tuple(shapes)} if shapes else {}))
 
 
-def other_rival_laws(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
+def other_rival_laws(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit, cur_held: float, sigma: float, fit,
                      rivals: dict, say: Callable[[str], None], sc=None):
     """Every effect's law is chosen in the step that names it, beside the effects named so far and
     before the shapes and nuisance are refitted beside it; the hysteresis's rival has a stage of its
@@ -152,7 +152,7 @@ def other_rival_laws(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_h
         new = _with_law(cur.spec, effect, entry.rival).for_experiment(trace.experiment)
         own = _law_terms(effect, entry.rival)
         starts = _rival_starts(trace, cur, new, effect, rivals.get(effect, {}).get(entry.rival, {}), sc)
-        cur, cur_held, r = _law_swapped(trace, part, first, cur, cur_held, sigma, fit, new, effect, law, starts,
+        cur, cur_held, r = _law_swapped(trace, part, held_out, cur, cur_held, sigma, fit, new, effect, law, starts,
                                         lambda k, own=own: k in own, say)
         refinements.append(r)
     return cur, cur_held, refinements
@@ -242,7 +242,7 @@ def _own_starts(trace: Trace, cur: ModelFit, new, law: str, mine: dict, sc=None)
     return [s for s in entry.starts(base, new, sc if sc is not None else _scales(trace), trace) if s is not None]
 
 
-def _law_swapped(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
+def _law_swapped(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit, cur_held: float, sigma: float, fit,
                  new, effect: str, law: str, starts: list, reported: Callable[[str], bool],
                  say: Callable[[str], None], reseed: Callable | None = None, **fit_options):
     """``new`` (``cur`` with another law of ``effect`` in ``law``'s place) fitted from ``starts`` and
@@ -259,7 +259,7 @@ def _law_swapped(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held:
         bic = bic_change(cur, fm, len(trace.time))
         if bic < 0.0 and fm.rms < cur.rms:
             pf = fit(part, new, cur.effects, [fm.params], **fit_options)
-            held = _heldout(trace, new, pf.params, first) if pf.ok else float("inf")
+            held = _heldout(trace, new, pf.params, held_out) if pf.ok else float("inf")
         ok, verdict = _law_judged(cur.rms, fm.rms, bic, cur_held, held, sigma, law)
         if not ok and reseed is not None and bic < 0.0 and fm.rms < cur.rms:
             fm, held, bic, ok, verdict = _reseeded_rival(cur, cur_held, fm, held, bic, verdict, sigma, law,
@@ -323,7 +323,7 @@ def idle_slip_strains_moved(eps: np.ndarray, idle: np.ndarray, names: Sequence[s
     return dict(zip([n for n, i in zip(names, idle) if i], new))
 
 
-def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float,
+def restart_idle_elements(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit, cur_held: float, sigma: float,
                           fit, say: Callable[[str], None]):
     """The Iwan bank's element stiffnesses start from a non-negative least-squares estimate, which
     is sparse, and are fitted on a log scale: an element the estimate or a fit left near zero has
@@ -362,7 +362,7 @@ def restart_idle_elements(trace: Trace, part: Trace, first: int, cur: ModelFit, 
         say(f"  {n_idle} idle Iwan element{'s' if n_idle > 1 else ''} restarted: not kept: {why}")
         return cur, cur_held, r
     pf = fit(part, fm.spec, fm.effects, [fm.params], extra=fm.shape)
-    held = _heldout(trace, fm.spec, pf.params, first) if pf.ok else float("inf")
+    held = _heldout(trace, fm.spec, pf.params, held_out) if pf.ok else float("inf")
     bic = bic_change(cur, fm, len(trace.time))
     live = int(np.sum(np.array([fm.params[n] for n in names]) >= IWAN_IDLE_SHARE * total))
     verdict = (f"{where}: "
@@ -466,7 +466,7 @@ def finer_banks(params: dict, bank: Sequence[str]) -> list[dict]:
     return [_bank_params(k2, e2) for k2, e2 in (b for b in banks if b is not None)]
 
 
-def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
+def finer_bank(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit, cur_held: float, sigma: float, fit,
                say: Callable[[str], None]):
     """The search fits an Iwan bank of IWAN_FIT_ELEMENTS elements; a smooth hysteresis loop (a
     braid's friction spread over many fibres) seen through a record with little noise needs more:
@@ -502,7 +502,7 @@ def finer_bank(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: f
     else:
         if bic < 0.0 and fm.rms < cur.rms and _shape_heldout_asked(cur.rms, cur_held, fm.rms, sigma):
             pf = fit(part, fm.spec, fm.effects, [fm.params], extra=extra, cap_factor=cap_factor, **FINER_BANK_ENGINE)
-            held = _heldout(trace, fm.spec, pf.params, first) if pf.ok else float("inf")
+            held = _heldout(trace, fm.spec, pf.params, held_out) if pf.ok else float("inf")
         ok, verdict = _shape_judged(cur.rms, fm.rms, bic, cur_held, held, sigma,
                                     f"RMS error {cur.rms / sigma:.2f} -> {fm.rms / sigma:.2f} x noise, BIC changes "
                                     f"by {bic:+.1f}: the bank of {len(bank)} stays")
@@ -551,7 +551,7 @@ def _wider_law_starts(trace: Trace, cur: ModelFit, new, effect: str, law: str) -
     return starts
 
 
-def wider_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: float, sigma: float, fit,
+def wider_law(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit, cur_held: float, sigma: float, fit,
               say: Callable[[str], None]):
     """The search names effects with its own laws (the cubic, the Kelvin cells and slip); a tether
     that is not ours may follow another law of the same effect (WIDER_LAWS: an exponential
@@ -565,7 +565,7 @@ def wider_law(trace: Trace, part: Trace, first: int, cur: ModelFit, cur_held: fl
         if cur.rms <= CRITERIA.within_noise * sigma or effect not in cur.effects or _law_of(cur.spec, effect) != law:
             continue
         new = _with_law(cur.spec, effect, other).for_experiment(trace.experiment)
-        cur, cur_held, r = _law_swapped(trace, part, first, cur, cur_held, sigma, fit, new, effect, law,
+        cur, cur_held, r = _law_swapped(trace, part, held_out, cur, cur_held, sigma, fit, new, effect, law,
                                         _wider_law_starts(trace, cur, new, effect, law),
                                         lambda k, free=tuple(cur.free): k not in free, say)
         refinements.append(r)

@@ -1,6 +1,6 @@
-"""Which samples of the record a fit sees: the first part (the held-out test; in a creep test
-the first part of each load level), and every k-th sample of a long record (the search's
-thinning)."""
+"""Which samples of the record a fit sees: the first part (the held-out test; in a load-controlled
+record the first part of each stretch of the load), and every k-th sample of a long record (the
+search's thinning)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 
+from ..noise import _robust_std
 from ..traces import Trace
 
 
@@ -32,42 +33,76 @@ def _samples_of(trace: Trace, index) -> Trace:
     return out
 
 
-#: a creep test's load changes level where it moves by more than this share of its range from one
-#: sample to the next (a measured load's noise stays far below it)
-LEVEL_STEP = 0.1
-
-
 def heldout_split(trace: Trace, fraction: float) -> tuple[Trace, np.ndarray]:
     """(the record as a held-out fit sees it, the held-out samples: True per sample). The first
-    ``fraction`` of the record (_truncated) and the rest held out; in a creep test, the first
-    ``fraction`` of each load level, its last part held out (the fit simulates the whole record
-    and sees the first parts only: Trace.fitted_samples). A creep test's last part is the recovery
-    after the last level change: a fit that saw the hold and minutes of the recovery predicts the
-    rest from the split of recoverable and unrecoverable creep, which those minutes hardly fix
-    (docs/campaign-discovery.md, session 39)."""
+    ``fraction`` of the record (_truncated) and the rest held out; in a load-controlled record
+    (load_unload, creep) the first ``fraction`` of each stretch of the load (load_stretches: each
+    ramp up, ramp down and hold), its last part held out (the fit simulates the whole record and
+    sees the first parts only: Trace.fitted_samples). A load test's last part is the unloading and
+    the recovery after it: a fit of the record's first part never sees the load fall, and predicts
+    the recovery from a split of recoverable and unrecoverable creep that the loading alone does
+    not fix (docs/discovery.md, "Where the held-out part lies")."""
     n = len(trace.time)
-    levels = load_levels(trace) if trace.experiment == "creep" and trace.input is not None else []
-    if len(levels) < 2:
+    stretches = load_stretches(trace) if trace.rig == "load" and trace.input is not None else []
+    if len(stretches) < 2:
         part = _truncated(trace, fraction)
         return part, np.arange(n) >= len(part.time)
     held = np.zeros(n, bool)
-    for a, b in levels:
+    for a, b in stretches:
         held[a + int(round(fraction * (b - a))):b] = True
     part = copy.copy(trace)
     part.fitted_samples = ~held
     return part, held
 
 
-def load_levels(trace: Trace) -> list[tuple[int, int]]:
-    """The stretches [a, b) of samples over which a creep test's load holds one level: split where
-    it moves by more than LEVEL_STEP of its range from one sample to the next."""
+def held_out_spans(trace: Trace, held: np.ndarray) -> list[tuple[float, float]]:
+    """The times [s] of the first and last sample of each run of held-out samples (heldout_split)."""
+    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(held, int), 0]))
+    t = np.asarray(trace.time, float)
+    return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2])]
+
+
+#: a stretch of the load has at least this many samples: a shorter run of one direction (the noise
+#: of a measured load on a hold, a step taken within a few sample intervals) joins the stretch
+#: before it
+STRETCH_SAMPLES = 5
+
+#: ... and a short run that moves the load by more than this share of its range is a step: it ends
+#: the stretch it joins (a measured load's noise stays far below it)
+LEVEL_STEP = 0.1
+
+#: the load moves between two samples where it changes by more than this many times its noise
+#: (the second differences' robust scale: ramps and holds have none) or CORNER_TOLERANCE of its
+#: largest magnitude (the digits a CSV file keeps)
+STRETCH_NOISE = 4.0
+
+
+def load_stretches(trace: Trace) -> list[tuple[int, int]]:
+    """The stretches [a, b) of samples over which a load-controlled record's load goes one way:
+    up, down or held. Each sample takes the direction of its next sample interval; runs shorter
+    than STRETCH_SAMPLES join the run before them (the first, the one after it), and a short run
+    that moves the load by LEVEL_STEP of its range or more (a step) ends the stretch it joined."""
     u = np.asarray(trace.input, float)
-    span = float(np.ptp(u))
-    if not span > 0:
+    if len(u) < 3 or not np.ptp(u) > 0:
         return [(0, len(u))]
-    cuts = np.nonzero(np.abs(np.diff(u)) > LEVEL_STEP * span)[0] + 1
-    edges = [0, *cuts.tolist(), len(u)]
-    return [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+    du = np.diff(u)
+    tol = max(STRETCH_NOISE * _robust_std(np.diff(u, 2)) / math.sqrt(6.0),
+              CORNER_TOLERANCE * float(np.max(np.abs(u))))
+    way = np.sign(du) * (np.abs(du) > tol)
+    way = np.r_[way, way[-1]]
+    edges = [0, *(np.flatnonzero(np.diff(way)) + 1).tolist(), len(u)]
+    step = LEVEL_STEP * float(np.ptp(u))
+    merged: list[list] = []              # [a, b, the way the stretch goes, ended by a step]
+    for a, b in zip(edges[:-1], edges[1:]):
+        short = b - a < STRETCH_SAMPLES
+        is_step = short and abs(u[min(b, len(u) - 1)] - u[a]) > step
+        if merged and merged[-1][1] - merged[-1][0] < STRETCH_SAMPLES and not merged[-1][3]:
+            merged[-1][1:3] = [b, way[a]]           # the first run, too short: it takes the next one's way
+        elif merged and not merged[-1][3] and (short or way[a] == merged[-1][2]):
+            merged[-1][1], merged[-1][3] = b, is_step
+        else:
+            merged.append([a, b, way[a], False])
+    return [(a, b) for a, b, _, _ in merged]
 
 
 #: a record whose simulation runs over more samples than this is searched on every k-th sample,

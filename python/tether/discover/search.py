@@ -32,7 +32,7 @@ from . import rival
 from .branch import RivalBranch
 from .pairs import PairStep
 from .rival import IWAN_STAGE_CAP_FACTOR
-from .samples import _truncated, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
+from .samples import held_out_spans, heldout_split, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
 from .scales import _scales
 from .starts import _damping_table_starts, _reduced_starts, candidate_starts
 
@@ -122,8 +122,7 @@ class Search(PairStep, RivalBranch):
         self.trace = trace
         self.sc = _scales(trace)
         self.n = len(trace.time)
-        self.part = _truncated(trace, CRITERIA.fit_part)
-        self.first = len(self.part.time)
+        self.part, self.held_out = heldout_split(trace, CRITERIA.fit_part)
         self.sc_part = _scales(self.part)
         self.spec = parse_model(start, trace.experiment)
         self.base_effects = tuple(self.spec.effects)
@@ -166,7 +165,7 @@ class Search(PairStep, RivalBranch):
         self.fit_cap = self.cap          # the cap of the current stage (the second search's: SECOND_SEARCH_CAP_SHARE)
         self.cur = cur
         part_fit = self.fit(self.part, spec, self.base_effects, [cur.params], self.sc_part, cap_factor=1.0)
-        self.cur_held = _heldout(trace, spec, part_fit.params, self.first)
+        self.cur_held = _heldout(trace, spec, part_fit.params, self.held_out)
         self.say(f"{cur.model}: RMS error {cur.rms:.3g} m = {cur.rms / self.sigma:.2f} x noise ({cur.seconds:.1f} s)")
         self.fits = [cur]
 
@@ -235,7 +234,7 @@ class Search(PairStep, RivalBranch):
     def heldout_of(self, m: ModelFit) -> float:
         """The held-out error of ``m``: its prediction of the held-out part by its fit to the first."""
         pf = self.fit(self.part, m.spec, m.effects, [m.params], self.sc_part)
-        return _heldout(self.trace, m.spec, pf.params, self.first) if pf.ok else float("inf")
+        return _heldout(self.trace, m.spec, pf.params, self.held_out) if pf.ok else float("inf")
 
     def model_cap_factor(self, m: ModelFit) -> float:
         """The work cap for fits of ``m``'s kind, as a multiple of the search's: the cap is CAP_SIMULATIONS
@@ -270,7 +269,8 @@ class Search(PairStep, RivalBranch):
                 self.stages.append(stage.name)
         return Discovery(trace=self.whole, noise=self.noise, start_model=self.spec.canonical, fits=self.fits,
                          steps=self.steps, stop_reason=self.stop, seconds=time.perf_counter() - self.t_begin,
-                         heldout_start=float(self.trace.time[self.first]), removals=self.removals,
+                         heldout_start=float(self.trace.time[np.argmax(self.held_out)]),
+                         heldout_spans=held_out_spans(self.trace, self.held_out), removals=self.removals,
                          refinements=self.refinements, searched_every=self.every,
                          nuisance_freed=bool(self.nuisance), stages=self.stages)
 
@@ -500,11 +500,11 @@ class Search(PairStep, RivalBranch):
         if c.part_fit is None:
             c.part_fit = self.part_fit(c)
         pf, sigma = c.part_fit, self.sigma
-        c.heldout_rms = _heldout(self.trace, c.fit.spec, pf.params, self.first) if pf.ok else float("inf")
+        c.heldout_rms = _heldout(self.trace, c.fit.spec, pf.params, self.held_out) if pf.ok else float("inf")
         self.say(f"  {c.effect}{label}: held-out RMS error {c.heldout_rms / sigma:.2f} x noise (was "
                  f"{self.cur_held / sigma:.2f})")
         unasked = c.effect == "slack" and slack_heldout_unasked(
-            c.added_parameters, bool(regimes(self.trace, c.fit)["slack"][self.first:].any()))
+            c.added_parameters, bool(regimes(self.trace, c.fit)["slack"][self.held_out].any()))
         if unasked:
             c.verdict += f"; {unasked}"
             return
@@ -621,7 +621,7 @@ class Search(PairStep, RivalBranch):
         if cap_factor is None:
             cap_factor = self.candidate_cap_factor()
         refined, refined_held, refs = refine_shapes(
-            self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
+            self.trace, self.part, self.held_out, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, extra, own_thread=False: self.shape_fit(tr, sp, eff, starts, extra, own_thread,
                                                                                 cap_factor),
             self.sc, self.say, skip=skip)
@@ -670,7 +670,7 @@ class Search(PairStep, RivalBranch):
         error, Refinement or None)."""
         mf = self.model_cap_factor(m)
         return getattr(rival, move)(
-            self.trace, self.part, self.first, m, held, self.sigma,
+            self.trace, self.part, self.held_out, m, held, self.sigma,
             lambda tr, sp, eff, starts, extra=(), cap_factor=1.0, **kw:
             self.shape_fit(tr, sp, eff, starts, extra, cap_factor=cap_factor * mf, **kw), self.say)
 
@@ -696,7 +696,7 @@ class Search(PairStep, RivalBranch):
         shaped = any(k in HYSTERESIS_PARAMETERS.get(law, ()) for k in self.shape_free)
         base = self.candidate_cap_factor()
         self.rival_kept = self.adopt(rival.rival_law(
-            self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
+            self.trace, self.part, self.held_out, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None, cap_factor=1.0, extra=(): self.fit(
                 tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, extra, baseline_rms=baseline_rms,
                 cap_factor=base * cap_factor),
@@ -722,7 +722,7 @@ class Search(PairStep, RivalBranch):
         candidate's work caps, its result adopted (``where``: for the stop reason)."""
         base = self.candidate_cap_factor()
         self.adopt(stage(
-            self.trace, self.part, self.first, self.cur, self.cur_held, self.sigma,
+            self.trace, self.part, self.held_out, self.cur, self.cur_held, self.sigma,
             lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
                 tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms,
                 cap_factor=base),
