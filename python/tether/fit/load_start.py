@@ -30,23 +30,49 @@ def load_estimate(traces: Sequence[Trace], spec: ModelSpec, defaults: dict) -> d
     return est
 
 
+#: a creep test whose load ramps over at least this many samples (a ramp sampled on its way, not a
+#: step between two samples) traces the elastic curve there as a load test does
+CURVE_SAMPLES = 8
+
+#: the load steps between two samples where it changes by more than this share of its largest
+#: value; a smaller change, above the digits a record keeps, is a ramp sampled on its way
+STEP_SHARE = 0.05
+
+
+def _load_moves(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample of the load ``T``: did it step there from the sample before, did a ramp reach it
+    (STEP_SHARE)."""
+    change = np.r_[0.0, np.abs(np.diff(T))]
+    top = max(float(np.max(np.abs(T))), 1e-300)
+    return change > STEP_SHARE * top, (change > 1e-6 * top) & (change <= STEP_SHARE * top)
+
+
+def _instantaneous(T: np.ndarray) -> np.ndarray:
+    """The samples of a creep test where its elongation is the elastic law's (creep has had seconds
+    at most): the first, the first after each step of the load, and those its ramps reach."""
+    steps, ramps = _load_moves(T)
+    sel = np.r_[False, steps[:-1]] & ~steps
+    sel[0] = True
+    return sel | ramps
+
+
 def _static_law(traces: Sequence[Trace], spec: ModelSpec) -> dict:
     """EA (and the cubic's a1..a3, the exponential's exp_F, exp_eps or the bilinear's toe) by least squares of tension
-    against strain over the load-unload tests' loaded samples; a creep test alone informs only EA
-    (two load levels)."""
+    against strain over the load-unload tests' loaded samples and the creep tests' instantaneous
+    ones (_instantaneous); a creep test whose load changes in steps informs only EA (two load
+    levels), one whose load ramps over CURVE_SAMPLES or more samples the nonlinear laws too."""
     est: dict = {}
     eps_all, T_all = [], []
-    static = [tr for tr in traces if tr.experiment == "load_unload"]
+    static = [tr for tr in traces if tr.experiment == "load_unload"
+              or (tr.experiment == "creep" and np.count_nonzero(_load_moves(np.asarray(tr.input, float))[1])
+                  >= CURVE_SAMPLES)]
     if not static and spec.stiffness == "linear" and spec.hysteresis != "kawabata":
         static = list(traces)
     for tr in static:
         T = np.asarray(tr.input, float)
         eps = np.asarray(tr.measured, float) / float(tr.length_m)
         if tr.experiment == "creep":
-            # the instantaneous (elastic) response: the first sample after each load change
-            jump = np.r_[False, np.abs(np.diff(T)) > 0.05 * max(T.max(), 1e-300)]
-            sel = np.r_[False, jump[:-1]] & ~jump
-            sel |= np.r_[True, np.zeros(len(T) - 1, bool)]
+            sel = _instantaneous(T)
         else:
             sel = T > 0.02 * max(T.max(), 1e-300)
         eps_all.append(eps[sel])
