@@ -102,6 +102,7 @@ def discovery_document(d: Discovery) -> dict:
         "shape_refined": list(final.shape),
         "nuisance": nuisance_section(tr, final, d.nuisance_freed),
         "stop_reason": d.stop_reason,
+        "stages": list(d.stages),
         "seconds": d.seconds,
         "final_params": final_params,
         "model": final_params["model"],
