@@ -147,7 +147,8 @@ def test_the_plan_is_the_table_of_the_docs():
 def _state(**kw):
     state = dict(budget_hit=False, search_again=False, rival_kept=False, named_again=lambda: False,
                  shapes_left=lambda: False, reseedable=lambda: False, has_rival=lambda: False,
-                 laws_changed=lambda: set(), branch_due=lambda: False, pairs_due=lambda: False)
+                 laws_changed=lambda: set(), branch_due=lambda: False, pairs_due=lambda: False,
+                 runner_ups_due=lambda: False)
     state.update(kw)
     return types.SimpleNamespace(**state)
 
@@ -162,9 +163,11 @@ def test_the_plan_conditions_read_the_search_state_as_documented():
     shape asked for it; its shapes only where it named an effect or left shapes; the rival law only
     where the step fitted one; the reseed stages where a law can be reseeded (the second only after
     the rival was kept); the re-test where a law changed; the pairs where the search stopped without
-    a winner (pairs_due, tested in test_discover_pairs.py) and before the reseed; a spent budget
-    leaves the first search and the final fit."""
+    a winner (pairs_due, tested in test_discover_pairs.py) and before the reseed; the runner-ups
+    right after the first search where runner_ups_due (tested in test_discover_runner_up.py); a
+    spent budget leaves the first search and the final fit."""
     assert _due(_state()) == ["effects", "shapes", "other rival laws", "wider laws", "final fit"]
+    assert _due(_state(runner_ups_due=lambda: True))[:3] == ["effects", "runner-ups", "shapes"]
     assert _due(_state(budget_hit=True, search_again=True, rival_kept=True, has_rival=lambda: True,
                        laws_changed=lambda: {"hysteresis"})) == ["effects", "effects again", "final fit"]
     assert "shapes again" not in _due(_state(search_again=True))

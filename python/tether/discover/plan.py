@@ -33,6 +33,11 @@ PLAN = (
           "each effect the record can reveal and the model lacks, with each of its laws, step by step; after a "
           "step, each effect named before the winner, removed",
           "full_data_verdict, heldout_verdict (and acts_as_itself); a removal: full_data_verdict"),
+    Stage("runner-ups", "the model misses the record (above CRITERIA.within_noise), the budget is not spent, and "
+          "a named effect's step set a candidate of another effect aside for it", lambda s: s.runner_ups_due(),
+          "swap_runner_ups", "each named effect's runner-up (the candidate its step set aside with the lowest BIC) "
+          "in its place beside the rest of the model; where kept, each other named effect removed",
+          "_law_judged (and acts_as_itself); a removal: full_data_verdict"),
     Stage("shapes", "the budget is not spent", lambda s: not s.budget_hit, "refine_shapes_first",
           "the shape groups of the named laws (SHAPE_TERMS), one at a time from the final model",
           "_shape_judged"),

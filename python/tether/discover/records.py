@@ -30,6 +30,7 @@ class CandidateResult:
     accepted: bool = False
     seconds_spent: float | None = None      # kept by forget_curves
     outranked_by: str = ""                  # passed (or was set aside untested), but this effect won the step
+    values: dict = field(repr=False, default_factory=dict)   # the fit's parameters, kept by forget_curves
 
     def seconds(self) -> float:
         """The time of this candidate's fits (the whole record's and the held-out part's)."""
@@ -38,8 +39,9 @@ class CandidateResult:
         return (self.fit.seconds if self.fit else 0.0) + (self.part_fit.seconds if self.part_fit else 0.0)
 
     def forget_curves(self) -> None:
-        """Drop the fits (their fitted curves are what weighs), keeping what they cost."""
+        """Drop the fits (their fitted curves are what weighs), keeping what they cost and their values."""
         self.seconds_spent = self.seconds()
+        self.values = dict(self.fit.params) if self.fit is not None and self.fit.ok else {}
         self.fit = self.part_fit = None
 
     def as_dict(self, sigma: float) -> dict:

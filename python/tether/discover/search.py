@@ -31,6 +31,7 @@ from .refine import _knots_unseen, _shape_groups, refine_shapes
 from . import rival
 from .branch import RivalBranch
 from .pairs import PairStep
+from .runner_up import RunnerUpSwap
 from .rival import IWAN_STAGE_CAP_FACTOR
 from .samples import held_out_spans, heldout_split, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
 from .scales import _scales
@@ -89,7 +90,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     return Search(trace, start, progress, max_steps, heldout_candidates, budget, nuisance).run()
 
 
-class Search(PairStep, RivalBranch):
+class Search(PairStep, RunnerUpSwap, RivalBranch):
     """One discovery run: the record (searched, and whole where the search thins it), its noise and
     held-out split, the current fit and its held-out error, the steps, removals and refinements so
     far, the work caps and the budget. run() takes the stages in turn: the search for effects
