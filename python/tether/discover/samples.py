@@ -80,8 +80,9 @@ STRETCH_NOISE = 4.0
 def load_stretches(trace: Trace) -> list[tuple[int, int]]:
     """The stretches [a, b) of samples over which a load-controlled record's load goes one way:
     up, down or held. Each sample takes the direction of its next sample interval; runs shorter
-    than STRETCH_SAMPLES join the run before them (the first, the one after it), and a short run
-    that moves the load by LEVEL_STEP of its range or more (a step) ends the stretch it joined."""
+    than STRETCH_SAMPLES join the run before them (one that begins a stretch, the run after it),
+    and a short run that moves the load by LEVEL_STEP of its range or more (a step) ends the
+    stretch it joined."""
     u = np.asarray(trace.input, float)
     if len(u) < 3 or not np.ptp(u) > 0:
         return [(0, len(u))]
@@ -97,7 +98,7 @@ def load_stretches(trace: Trace) -> list[tuple[int, int]]:
         short = b - a < STRETCH_SAMPLES
         is_step = short and abs(u[min(b, len(u) - 1)] - u[a]) > step
         if merged and merged[-1][1] - merged[-1][0] < STRETCH_SAMPLES and not merged[-1][3]:
-            merged[-1][1:3] = [b, way[a]]           # the first run, too short: it takes the next one's way
+            merged[-1][1:3] = [b, way[a]]           # a stretch still too short takes the next run's way
         elif merged and not merged[-1][3] and (short or way[a] == merged[-1][2]):
             merged[-1][1], merged[-1][3] = b, is_step
         else:
