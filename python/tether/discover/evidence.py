@@ -11,6 +11,7 @@ import numpy as np
 from ..traces import Trace
 from .fitting import ModelFit
 from .laws import CANDIDATES
+from .samples import true_runs
 
 
 @dataclass
@@ -103,9 +104,8 @@ def regimes(trace: Trace, fit: ModelFit | None = None) -> dict[str, np.ndarray]:
         hold = ~moving
         # only holds that last: runs of at least 2 % of the record's duration
         min_len = 0.02 * (t[-1] - t[0])
-        edges = np.flatnonzero(np.diff(np.r_[0, hold.astype(int), 0]))
         long_hold = np.zeros(n, bool)
-        for a, b in zip(edges[::2], edges[1::2]):
+        for a, b in true_runs(hold):
             if t[b - 1] - t[a] >= min_len:
                 long_hold[a:b] = True
         out["hold"] = long_hold
@@ -172,8 +172,7 @@ def disagreement(trace: Trace, fit: ModelFit, sigma: float, masks: dict | None =
     flag = ms > max(thr, 0.1 * float(np.max(ms)))
     masks = masks if masks is not None else regimes(trace, fit)
     excess_total = float(np.sum(np.maximum(r ** 2 - sigma ** 2, 0.0))) or 1e-300
-    edges = np.flatnonzero(np.diff(np.r_[0, flag.astype(int), 0]))
-    runs = [[a, b] for a, b in zip(edges[::2], edges[1::2])]
+    runs = true_runs(flag)
     merged: list[list[int]] = []
     for a, b in runs:                      # close gaps shorter than a window
         if merged and a - merged[-1][1] < w:
@@ -301,10 +300,9 @@ def signatures(trace: Trace, fit: ModelFit, sigma: float, masks: dict) -> dict[s
         drift = 0.0
         if hold.any():
             t = np.asarray(trace.time, float)
-            edges = np.flatnonzero(np.diff(np.r_[0, hold.astype(int), 0]))
             tot = float(np.sum(r ** 2)) or 1e-300
             level = 0.0
-            for a, b in zip(edges[::2], edges[1::2]):
+            for a, b in true_runs(hold):
                 if b - a < 5:
                     continue
                 X = np.column_stack([np.ones(b - a), t[a:b] - t[a]])

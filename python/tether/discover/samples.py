@@ -55,11 +55,16 @@ def heldout_split(trace: Trace, fraction: float) -> tuple[Trace, np.ndarray]:
     return part, held
 
 
+def true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The runs [a, b) of consecutive True samples of ``mask``."""
+    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask, int), 0]))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+
+
 def held_out_spans(trace: Trace, held: np.ndarray) -> list[tuple[float, float]]:
     """The times [s] of the first and last sample of each run of held-out samples (heldout_split)."""
-    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(held, int), 0]))
     t = np.asarray(trace.time, float)
-    return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2])]
+    return [(float(t[a]), float(t[b - 1])) for a, b in true_runs(held)]
 
 
 #: a stretch of the load has at least this many samples: a shorter run of one direction (the noise
