@@ -128,5 +128,13 @@ double creep_slip_activation(const tether_params *p, double T);
  * which under a constant T integrates to eps_p = (C / n)((1 + t/tau)^n - 1) (C ln(1 + t/tau) at
  * n = 0): Findley's power of time beyond tau, regular at t = 0. 0 for T <= 0 (no recovery). */
 double creep_primary_rate(const tether_params *p, double T, double eps_p);
+/* The creep state of a tether free of creep on which the tension T >= 0 has been held for the time
+ * age >= 0 (a preload hung before a record starts): each Kelvin cell at J_k T (1 - exp(-age/tau_k)),
+ * the primary creep at (C / n)((1 + age/tau)^n - 1), both closed forms; the slip and its clearance
+ * integrated under T (classical Runge-Kutta, each step within the slip's own time scales, until
+ * age or until what is left to happen is below 1e-15). Returns 0, or -1 where the slip would take
+ * more than CREEP_HOLD_MAX_STEPS steps. */
+#define CREEP_HOLD_MAX_STEPS 10000000L
+int creep_after_hold(const tether_params *p, double T, double age, creep_state *s);
 
 #endif

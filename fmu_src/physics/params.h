@@ -54,6 +54,9 @@ typedef struct {
     /* primary creep (creep_law = primary, in the slip's place): eps_p = (J T / n)((1 + t/tau)^n - 1)
      * under a constant T (J T ln(1 + t/tau) at n = 0), as a strain-hardening state equation */
     double primary_J, primary_tau, primary_n;
+    /* load rig, creep: how long the first load had hung on a tether free of creep before the record
+     * started (0: the record starts free of creep; laws.h: creep_after_hold) */
+    double creep_preload_age;
 } tether_params;
 
 /* Inputs. force and load may carry time derivatives up to third order (input interpolation): from

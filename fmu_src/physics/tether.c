@@ -248,6 +248,12 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (!(p->line_density >= 0.0) || !isfinite(p->line_density))
         FAIL("line_density = %g kg/m: expected the tether line's mass per length, finite and >= 0", p->line_density);
     if (!(p->g >= 0.0)) FAIL("g = %g m/s2: expected g >= 0", p->g);
+    if (!(p->creep_preload_age >= 0.0) || !isfinite(p->creep_preload_age))
+        FAIL("creep_preload_age = %g s: expected the time the first load had hung before the record, finite and >= 0",
+             p->creep_preload_age);
+    if (p->creep_preload_age > 0.0 && p->rig != RIG_LOAD)
+        FAIL("creep_preload_age = %g s: a preload's creep is a load-rig record's (rig = 3); rig = %d starts free of creep",
+             p->creep_preload_age, p->rig);
     if (!isfinite(p->last_reversal_beyond)) FAIL("last_reversal_beyond = %g m: expected a finite distance", p->last_reversal_beyond);
     if (p->stiffness == STIFFNESS_LINEAR && p->hysteresis != HYSTERESIS_KAWABATA && !(p->EA > 0.0)) FAIL("EA = %g N: the linear law needs EA > 0", p->EA);
     if (p->stiffness == STIFFNESS_BILINEAR && p->hysteresis != HYSTERESIS_KAWABATA) {
@@ -332,6 +338,27 @@ static int static_strain_at(const tether_model *M, double T, double *eps)
  * [-|x0|, |x0|]: a reversal inside that span leaves the bank as a monotone displacement from the
  * balance to x0 does (Masing's rule: the branch from it rejoins the virgin curve by x0), so every
  * beyond != 0 is a reversal the bank remembers, and 0 is the monotone displacement. */
+/* The load rig's creep under a preload: the first load held for creep_preload_age on a tether free
+ * of creep (creep_after_hold), its creep strain added to the elongation the load stretches. */
+static int preload_creep(const tether_model *M, double t0, double *y, char *msg, size_t len)
+{
+    const tether_params *p = &M->p;
+    creep_state c;
+    const double T0 = input_load(M, t0);
+    if (creep_after_hold(p, T0 > 0.0 ? T0 : 0.0, p->creep_preload_age, &c) != 0) {
+        snprintf(msg, len, "creep_preload_age = %g s, load = %g N: the slip law did not settle within %ld steps",
+                 p->creep_preload_age, T0, CREEP_HOLD_MAX_STEPS);
+        return -1;
+    }
+    y[ST_CREEP_1] = c.kelvin[0];
+    y[ST_CREEP_2] = c.kelvin[1];
+    y[ST_CREEP_3] = c.kelvin[2];
+    y[ST_SLIP] = c.slip;
+    y[ST_CAPACITY] = c.capacity;
+    y[ST_LOAD_ELONGATION] += (c.kelvin[0] + c.kelvin[1] + c.kelvin[2] + c.slip) * M->in.L0;
+    return 0;
+}
+
 static double last_reversal(double x0, double beyond)
 {
     return beyond > 0.0 ? fabs(x0) + beyond : -fabs(x0) + beyond;
@@ -396,6 +423,8 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
     }
     y[ST_HYSTERETIC_FORCE] = z0;
     y[ST_CAPACITY] = p->creep && p->creep_law == CREEP_KELVIN_SLIP ? p->slip_capacity0 : 0.0;
+    if (p->creep && p->rig == RIG_LOAD && p->creep_preload_age > 0.0 && preload_creep(M, t0, y, msg, len) != 0)
+        return -1;
     /* initial slack mode: taut only where the tether is stretched and pulls */
     M->d.taut = 1;
     if (slack_active(M)) {

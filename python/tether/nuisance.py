@@ -32,17 +32,23 @@ from .traces import Trace
 
 __all__ = ["NUISANCE", "MEASUREMENT", "STATE", "DEFAULT_MASS_BAND", "INPUT_GAIN_BOUNDS", "mass_band_rel",
            "check_mass_band", "mass_bounds", "mass_form", "refusal", "check_free", "freeable", "stated_values",
-           "nuisance_box", "last_reversal_estimate", "last_reversal_grid",
+           "nuisance_box", "preload_age_box", "preload_age_grid", "last_reversal_estimate", "last_reversal_grid",
            "drive_input", "measured_output", "moved_statement", "of_params_file"]
 
 #: the measurement parameters and their defaults (the engine's own list)
 MEASUREMENT = tuple(MEASUREMENT_DEFAULTS)
 #: the initial state of a payload record (the last reversal: the Iwan bank's memory of it)
 STATE = ("x0", "v0", "last_reversal_beyond")
-#: the nuisance parameters that belong to one hysteresis law: name -> the law
-HYSTERESIS_STATE = {"last_reversal_beyond": "iwan"}
+#: the initial state of a load-rig record: how long its first load had hung on the tether before it
+#: (the creep that preload left, tether.c: preload_creep)
+LOAD_STATE = ("creep_preload_age",)
+#: the nuisance parameters that belong to one law of the model: name -> (what it is, which law,
+#: whether a model has that law)
+LAW_STATE = {"last_reversal_beyond": ("the memory of the iwan hysteresis law", "hysteresis",
+                                      lambda spec: spec.hysteresis == "iwan"),
+             "creep_preload_age": ("the creep a preload left", "creep", lambda spec: bool(spec.creep))}
 #: every nuisance parameter a fit may free, in report order
-NUISANCE = ("m", *STATE, *MEASUREMENT)
+NUISANCE = ("m", *STATE, *LOAD_STATE, *MEASUREMENT)
 #: half-width of the mass band, relative, where a trace states no mass_uncertainty_rel
 DEFAULT_MASS_BAND = 0.3
 #: the range a fitted input gain keeps to
@@ -79,12 +85,15 @@ def mass_bounds(trace: Trace, rel: float | None = None) -> tuple[float, float]:
     return m * (1.0 - b), m * (1.0 + b)
 
 
-def law_refusal(name: str, hysteresis: str) -> str | None:
-    """Why ``name`` cannot be freed in a model of hysteresis law ``hysteresis``; None if it can."""
-    law = HYSTERESIS_STATE.get(name)
-    if law is None or law == hysteresis:
+def law_refusal(name: str, spec) -> str | None:
+    """Why ``name`` cannot be freed in a model ``spec`` (a models.ModelSpec) that lacks the law it
+    belongs to (LAW_STATE); None if it can."""
+    entry = LAW_STATE.get(name)
+    if entry is None or entry[2](spec):
         return None
-    return f"it is the memory of the {law} hysteresis law, and the model's hysteresis is {hysteresis}"
+    what, field, _ = entry
+    value = getattr(spec, field)
+    return f"it is {what}, and the model's {field} is {value if not isinstance(value, bool) else 'off'}"
 
 
 def refusal(trace: Trace, name: str, free: Sequence[str] = ()) -> str | None:
@@ -108,6 +117,12 @@ def refusal(trace: Trace, name: str, free: Sequence[str] = ()) -> str | None:
             return f"the {exp} record runs on the load rig, which has no payload state"
         if periodic:
             return "a periodic record is fitted in its periodic steady state, which forgets the initial state"
+    if name in LOAD_STATE:
+        if trace.rig != "load":
+            return (f"the {exp} record runs on the payload rig, whose tether starts free of creep (a preload's creep "
+                    "is a load-rig record's)")
+        if not float(trace.input[0]) > 0.0:
+            return f"the record's first load is {float(trace.input[0]):g} N: no preload hung before it"
     if name in ("offset_input", "input_gain") and trace.input_column is None:
         return f"a {exp} record has no input"
     if name == "input_gain" and trace.rig == "load":
@@ -238,6 +253,8 @@ def stated_values(trace: Trace) -> dict:
     value a fitted one's change is measured from (the JSON's mass and initial state, no offsets,
     a unit gain)."""
     out = dict(MEASUREMENT_DEFAULTS)
+    if trace.rig == "load":
+        out.update(creep_preload_age=0.0)
     if trace.rig == "payload":
         out.update(m=float(trace.payload_mass_kg), x0=float(trace.initial_displacement_m),
                    v0=float(trace.initial_velocity_m_s), last_reversal_beyond=0.0)
@@ -260,11 +277,44 @@ def nuisance_box(trace: Trace, name: str, mass_band: float | None = None) -> tup
         # motion moves: the record cannot tell it from a nearer one, and a fit would drift there
         span = float(np.ptp(np.asarray(trace.measured, float)))
         return -span, span, last_reversal_estimate(trace), "linear"
+    if name == "creep_preload_age":
+        return preload_age_box(trace)
     if name == "input_gain":
         return INPUT_GAIN_BOUNDS[0], INPUT_GAIN_BOUNDS[1], 1.0, "log"
     if name in MEASUREMENT:
         return -math.inf, math.inf, MEASUREMENT_DEFAULTS[name], "linear"
     raise KeyError(f"'{name}' is not a nuisance parameter ({', '.join(NUISANCE)})")
+
+
+#: the preload's age a fit may reach, relative to the record's duration (beyond: every creep time
+#: scale a record can show has run its course); where it starts, relative to the duration
+PRELOAD_AGE_LONGEST = 1e2
+PRELOAD_AGE_START = 1.0
+#: the ratio of neighbours on the grid of preload ages a fit scans (preload_age_grid)
+PRELOAD_AGE_GRID_RATIO = 2.0
+
+
+def preload_age_box(trace: Trace) -> tuple[float, float, float, str]:
+    """(lower, upper, start, scaling) of creep_preload_age on a load-rig record: from 0 to
+    PRELOAD_AGE_LONGEST times its duration, from PRELOAD_AGE_START of its duration, scaled
+    linearly: at a small age the record sees the age itself (the cells' creep under the preload
+    grows as the age does), which a log scale would hide, and a fit started there ran off to the
+    plateau of large ages (python_tests/test_creep_preload.py)."""
+    t = np.asarray(trace.time, float)
+    span = float(t[-1] - t[0])
+    return 0.0, PRELOAD_AGE_LONGEST * span, PRELOAD_AGE_START * span, "linear"
+
+
+def preload_age_grid(trace: Trace) -> list[float]:
+    """The preload ages a fit tries before it frees the age with the rest: 0, then from the
+    record's shortest sample interval each PRELOAD_AGE_GRID_RATIO times the last up to the box's
+    upper end. Once the preload's age passes a Kelvin cell's time, the cell starts saturated
+    whatever the age: the error is flat there, and a search by gradients started on that plateau
+    stays on it."""
+    hi = preload_age_box(trace)[1]
+    lo = float(np.min(np.diff(np.asarray(trace.time, float))))
+    n = int(math.ceil(math.log(hi / lo) / math.log(PRELOAD_AGE_GRID_RATIO)))
+    return [0.0] + [min(lo * PRELOAD_AGE_GRID_RATIO ** i, hi) for i in range(n + 1)]
 
 
 def drive_input(recorded: np.ndarray, derivatives: np.ndarray | None, params: Mapping[str, float]):

@@ -128,9 +128,9 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
         every = search_thinning(trace, noise.sigma, samples)
         searched = thinned(trace, every) if every > 1 else trace
         part, held = heldout_split(searched, CRITERIA.fit_part)
-        # (a hysteresis law's memory, NZ.HYSTERESIS_STATE, is a record's nuisance only in models with
-        # that law: the campaign's joint fits and counts of parameters do not follow the law yet)
-        nuisance = tuple(n for n in nuisance_parameters(trace) if n not in NZ.HYSTERESIS_STATE) if free_nuisance else ()
+        # (a law's state, NZ.LAW_STATE: the Iwan bank's memory, a preload's creep, is a record's nuisance
+        # only in models with that law: the campaign's joint fits and counts of parameters do not follow the law yet)
+        nuisance = tuple(n for n in nuisance_parameters(trace) if n not in NZ.LAW_STATE) if free_nuisance else ()
         self.say(f"{trace.name} ({trace.experiment}, {len(trace.time)} samples): noise {noise.sigma:.3g} m "
                  f"({noise.method})" + (f"; searched on every {ordinal(every)} sample ({len(searched.time)})"
                                         if every > 1 else ""))

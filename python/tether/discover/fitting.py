@@ -301,7 +301,7 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     spec = spec.for_experiment(trace.experiment)
     names = free_parameters(spec, trace.experiment)
     names += [e for e in extra if e not in names]
-    names += [e for e in nuisance if e not in names and NZ.law_refusal(e, spec.hysteresis) is None]
+    names += [e for e in nuisance if e not in names and NZ.law_refusal(e, spec) is None]
     names = [e for e in names if e not in held]
     evaluations = 0
     best, best_i, msg = None, -1, ""
@@ -344,7 +344,7 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
     params = dict(best.parameters)
     params.update(_held_nuisance(starts[best_i], names))
     params.update({n: float(best.values[n]) for n in best.free if n in NZ.NUISANCE})
-    params = {k: v for k, v in params.items() if NZ.law_refusal(k, spec.hysteresis) is None}
+    params = {k: v for k, v in params.items() if NZ.law_refusal(k, spec) is None}
     return ModelFit(spec=spec, effects=tuple(effects), params=params, free=list(best.free),
                     rms=float(best.rms), predicted=np.asarray(best.predictions[0]), evaluations=evaluations,
                     seconds=time.perf_counter() - t0, message=best.message, std_error=dict(best.std_error),

@@ -100,7 +100,7 @@ def nuisance_section(trace: Trace, fit: ModelFit, freed: bool = True) -> dict:
     kept = nuisance_not_freed(trace) if freed else {n: NOT_ASKED for n in _record_nuisance(trace)}
     if freed:
         kept.update({n: f"at its default: {why}" for n in nuisance_parameters(trace)
-                     if (why := NZ.law_refusal(n, fit.spec.hysteresis)) is not None})
+                     if (why := NZ.law_refusal(n, fit.spec)) is not None})
     return {"parameters": params, "not_freed": kept,
             "mass_band_rel": band,
             "mass_band_kg": ([float(trace.payload_mass_kg) * (1 - band), float(trace.payload_mass_kg) * (1 + band)]

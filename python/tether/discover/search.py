@@ -153,8 +153,9 @@ class Search(PairStep, RunnerUpSwap, RivalBranch):
         """The start model, fitted; the work cap of the search's fits, CAP_SIMULATIONS of its simulations
         (counted in evaluations of the model's equations, as the caps are); its held-out error."""
         spec, trace = self.spec, self.trace
+        own = [n for n in self.nuisance if NZ.law_refusal(n, spec) is None]
         self.say(f"fitting the start model {spec.canonical}"
-                 + (f" with the nuisance parameters {', '.join(self.nuisance)}" if self.nuisance else ""))
+                 + (f" with the nuisance parameters {', '.join(own)}" if own else ""))
         nz_start = self.nz_start = nuisance_start(trace, self.nuisance)
         starts = [data_start(trace, spec, nz_start), None] if nz_start else [None]
         cur = fit_model(trace, spec, self.base_effects, starts, self.sc, nuisance=self.nuisance)

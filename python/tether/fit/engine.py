@@ -17,7 +17,7 @@ from ..blas import in_one_blas_thread
 from ..models import IWAN_EPS, ModelSpec
 from ..traces import Trace, read_trace
 from .experiments import TraceExperiment, fitted_count, predict, trace_experiment
-from .memory import scan_memory
+from .memory import GRIDS, scan_memory
 from .parameters import (FIRST_STAGE, bounds_and_start, check_names, default_free_parameters, fmu_bounds,
                          fmu_defaults, model_spec)
 from .result import FitError, FitProgress, FitResult
@@ -200,8 +200,9 @@ def _stages(free_names: list[str]) -> list[tuple[str, list[str]]]:
     """(name, free) per stage: the elastic law and viscous damping (with the nuisance parameters,
     which a wrong mass or an offset would otherwise push into the law), then everything."""
     base = [n for n in free_names if n in FIRST_STAGE]
-    # a hysteresis law's memory is fitted with the law: beside a bank held at its start it runs off
-    nuisance_free = [n for n in free_names if n in NZ.NUISANCE and n not in NZ.HYSTERESIS_STATE]
+    # a law's state (the Iwan bank's memory, a preload's creep) is fitted with the law: beside a bank
+    # held at its start the memory runs off
+    nuisance_free = [n for n in free_names if n in NZ.NUISANCE and n not in NZ.LAW_STATE]
     stages = []
     if base and len(base) + len(nuisance_free) < len(free_names):
         stages.append(("elastic law + viscous damping" + (" + nuisance" if nuisance_free else ""),
@@ -223,9 +224,10 @@ def _run_stages(problem: _Problem, n_starts: int, progress: Callable[[FitProgres
         if progress:
             progress(FitProgress(sname, si, len(stages), -1, float("nan"), 0, _time.perf_counter() - t_begin,
                                  free=list(names)))
-        if si == len(stages) - 1 and "last_reversal_beyond" in names:
-            current = scan_memory(current, problem.free, problem.exps[0].trace, problem.box,
-                                  lambda v: _residuals(problem, v))
+        for state in (GRIDS if si == len(stages) - 1 else ()):
+            if state in names:
+                current = scan_memory(current, problem.free, problem.exps[0].trace, problem.box,
+                                      lambda v: _residuals(problem, v), state)
         hold = {n: current[n] for n in problem.free if n not in names}
         for x in problem.exps:
             x.exp.settings = {**x.exp.settings, **hold}

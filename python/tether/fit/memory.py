@@ -1,5 +1,7 @@
-"""The Iwan bank's memory of the run a record was cut from (last_reversal_beyond), found on a grid
-before a fit frees it with the rest (tether.nuisance.last_reversal_grid says why)."""
+"""A law's state before the record, found on a grid before a fit frees it with the rest: the Iwan
+bank's memory of the run a record was cut from (last_reversal_beyond;
+tether.nuisance.last_reversal_grid says why) and the age of the preload a load-rig record starts
+under (creep_preload_age; tether.nuisance.preload_age_grid)."""
 from __future__ import annotations
 
 import math
@@ -11,8 +13,11 @@ from .. import nuisance as NZ
 from ..traces import Trace
 
 MEMORY = "last_reversal_beyond"
-#: the parameters that move with the memory (the bank's force at the start moves the payload's
-#: state): at each value of the grid they are corrected along their columns of the Jacobian
+#: each scanned state's grid (a function of the trace)
+GRIDS = {MEMORY: NZ.last_reversal_grid, "creep_preload_age": NZ.preload_age_grid}
+#: the parameters that move with the state (the bank's force at the start moves the payload's
+#: state; the preload's creep moves the elongation's start): at each value of the grid they are
+#: corrected along their columns of the Jacobian
 COUPLED = ("x0", "v0", "offset_measured", "offset_input")
 #: their finite-difference steps, relative to the record's span (x0, offsets) and to its span per
 #: second (v0)
@@ -21,21 +26,21 @@ COUPLED_STEP = 1e-3
 
 def scan_memory(values: Mapping[str, float], free: Sequence[str], trace: Trace,
                 box: Mapping[str, tuple[float, float]],
-                residual_of: Callable[[Mapping[str, float]], np.ndarray]) -> dict:
-    """``values`` with the memory moved to the value of NZ.last_reversal_grid (or its own) whose
+                residual_of: Callable[[Mapping[str, float]], np.ndarray], name: str = MEMORY) -> dict:
+    """``values`` with the state ``name`` moved to the value of its grid (GRIDS) or its own whose
     residual, with the free COUPLED parameters corrected by linear least squares, is least; those
     corrections applied. A value that fails to simulate is passed over."""
-    lo, hi = box.get(MEMORY, (-math.inf, math.inf))
+    lo, hi = box.get(name, (-math.inf, math.inf))
     coupled = [n for n in COUPLED if n in free]
     r0 = _residual_or_none(residual_of, values)
     if r0 is None:
         return dict(values)
     J = _coupled_columns(values, coupled, trace, residual_of, r0)
     best, best_rss = dict(values), _projected(r0, J, values, coupled)[0]
-    for b in NZ.last_reversal_grid(trace):
-        if not lo <= b <= hi or b == values[MEMORY]:
+    for b in GRIDS[name](trace):
+        if not lo <= b <= hi or b == values[name]:
             continue
-        trial = {**values, MEMORY: b}
+        trial = {**values, name: b}
         r = _residual_or_none(residual_of, trial)
         if r is None:
             continue

@@ -105,7 +105,7 @@ def check_names(names: Iterable[str], spec: ModelSpec, what: str) -> list[str]:
         if n in NZ.NUISANCE:
             if n in out:
                 raise FitError(f"{what} '{n}' given twice")
-            why = NZ.law_refusal(n, spec.hysteresis)
+            why = NZ.law_refusal(n, spec)
             if why:
                 raise FitError(f"{what} '{n}': not used by the model '{spec.canonical}': {why}")
             out.append(n)
