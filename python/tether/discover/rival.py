@@ -159,10 +159,11 @@ def other_rival_laws(trace: Trace, part: Trace, held_out: np.ndarray, cur: Model
 
 
 def _law_terms(effect: str, law: str) -> tuple:
-    """The terms of ``law`` of ``effect`` (the elastic, damping, hysteresis or creep laws')."""
+    """The terms of ``law`` of ``effect`` (the elastic, damping, hysteresis or creep laws'); none for
+    an effect without a law (slack, a switch)."""
     from ..models import CREEP_PARAMETERS, DAMPING_PARAMETERS, STIFFNESS_PARAMETERS
     table = {"nonlinear_stiffness": STIFFNESS_PARAMETERS, "nonlinear_damping": DAMPING_PARAMETERS,
-             "hysteresis": HYSTERESIS_PARAMETERS, "creep": CREEP_PARAMETERS}[effect]
+             "hysteresis": HYSTERESIS_PARAMETERS, "creep": CREEP_PARAMETERS}.get(effect, {})
     return tuple(table.get(law, ()))
 
 
