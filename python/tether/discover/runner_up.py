@@ -59,7 +59,9 @@ class RunnerUpSwap:
         """The current model with ``runner_up``'s law in ``effect``'s place: the model without
         ``effect`` refitted (as a re-test does), then the runner-up added to it, from its law's terms
         of its step fit beside that model's values and from the registry's starts, judged against the
-        current model; kept where it wins (True)."""
+        current model; kept where it wins (True). The swap extends the model without ``effect``: a
+        start that gains on that model is carried to convergence, though its first iterations may
+        still miss the record more than the current model does."""
         cur, sigma, n = self.cur, self.sigma, self.n
         factor = self.candidate_cap_factor()
         reduced = _without(cur.spec, effect).for_experiment(self.trace.experiment)
@@ -72,7 +74,7 @@ class RunnerUpSwap:
             return False
         own = {k: v for k, v in runner_up.values.items() if k in _law_terms(runner_up.effect, law)}
         starts = ([{**base.params, **own}] if own else []) + candidate_starts(base, new, self.sc, self.trace)
-        fm = self.fit(self.trace, new, rest + (runner_up.effect,), starts, self.sc, baseline_rms=cur.rms,
+        fm = self.fit(self.trace, new, rest + (runner_up.effect,), starts, self.sc, baseline_rms=base.rms,
                       cap_factor=factor)
         held, bic = float("nan"), bic_change(cur, fm, n) if fm.ok else float("inf")
         if fm.ok and bic < 0.0 and fm.rms < cur.rms:
