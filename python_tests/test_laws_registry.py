@@ -148,7 +148,7 @@ def _state(**kw):
     state = dict(budget_hit=False, search_again=False, rival_kept=False, named_again=lambda: False,
                  shapes_left=lambda: False, reseedable=lambda: False, has_rival=lambda: False,
                  laws_changed=lambda: set(), branch_due=lambda: False, pairs_due=lambda: False,
-                 runner_ups_due=lambda: False)
+                 runner_ups_due=lambda: False, stand_ins_due=lambda: False)
     state.update(kw)
     return types.SimpleNamespace(**state)
 
@@ -164,8 +164,9 @@ def test_the_plan_conditions_read_the_search_state_as_documented():
     where the step fitted one; the reseed stages where a law can be reseeded (the second only after
     the rival was kept); the re-test where a law changed; the pairs where the search stopped without
     a winner (pairs_due, tested in test_discover_pairs.py) and before the reseed; the runner-ups
-    right after the first search where runner_ups_due (tested in test_discover_runner_up.py); a
-    spent budget leaves the first search and the final fit."""
+    right after the first search where runner_ups_due (tested in test_discover_runner_up.py); the
+    stand-ins after the wider laws where stand_ins_due (test_discover_stand_in.py); a spent budget
+    leaves the first search and the final fit."""
     assert _due(_state()) == ["effects", "shapes", "other rival laws", "wider laws", "final fit"]
     assert _due(_state(runner_ups_due=lambda: True))[:3] == ["effects", "runner-ups", "shapes"]
     assert _due(_state(budget_hit=True, search_again=True, rival_kept=True, has_rival=lambda: True,
@@ -177,6 +178,7 @@ def test_the_plan_conditions_read_the_search_state_as_documented():
     assert _due(_state(reseedable=lambda: True)) == ["effects", "shapes", "reseed", "other rival laws", "wider laws", "final fit"]
     assert "reseed the rival" in _due(_state(reseedable=lambda: True, rival_kept=True))
     assert "re-test" in _due(_state(laws_changed=lambda: {"nonlinear_stiffness"}))
+    assert _due(_state(stand_ins_due=lambda: True))[-3:] == ["wider laws", "stand-ins", "final fit"]
     assert _due(_state(branch_due=lambda: True)) == ["effects", "shapes", "other rival laws", "wider laws", "rival branch",
                                                       "final fit"]
     assert _due(_state(pairs_due=lambda: True, reseedable=lambda: True)) == [

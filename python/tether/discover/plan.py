@@ -72,6 +72,10 @@ PLAN = (
     Stage("wider laws", "the budget is not spent", lambda s: not s.budget_hit, "swap_wider_laws",
           "each named law's wider law in its place (WIDER_LAWS), where the model still misses the record",
           "_law_judged"),
+    Stage("stand-ins", "the budget is not spent and a named effect does not act as itself (acts_as_itself) beside "
+          "another named effect that has other laws", lambda s: s.stand_ins_due(), "swap_stand_ins",
+          "that effect removed with each other law of each other named effect in place (every law the rig can hold), "
+          "until one is adopted; then each other named effect removed", "full_data_verdict (as a re-test)"),
     Stage("re-test", "a last stage changed a law after the last step's re-tests, and the budget is not spent",
           lambda s: not s.budget_hit and bool(s.laws_changed()), "retest_after_refinements",
           "each other named effect removed, one removal at a time", "full_data_verdict"),

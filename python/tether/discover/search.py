@@ -32,6 +32,7 @@ from . import rival
 from .branch import RivalBranch
 from .pairs import PairStep
 from .runner_up import RunnerUpSwap
+from .stand_in import StandIn
 from .rival import IWAN_STAGE_CAP_FACTOR
 from .samples import held_out_spans, heldout_split, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
 from .scales import _scales
@@ -90,7 +91,7 @@ def discover(trace: Trace, start: str = "linear", progress: Callable[[str], None
     return Search(trace, start, progress, max_steps, heldout_candidates, budget, nuisance).run()
 
 
-class Search(PairStep, RunnerUpSwap, RivalBranch):
+class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
     """One discovery run: the record (searched, and whole where the search thins it), its noise and
     held-out split, the current fit and its held-out error, the steps, removals and refinements so
     far, the work caps and the budget. run() takes the stages in turn: the search for effects
