@@ -6,7 +6,7 @@ it keeps and what it records; the rule is checked against the BIC worked by hand
 
 from __future__ import annotations
 
-import math
+from functools import partial
 
 import numpy as np
 
@@ -15,18 +15,13 @@ from tether.discover.fitting import ModelFit
 from tether.discover.records import CandidateResult, Step
 from tether.models import parse_model
 
+from fit_outcomes import bic_by_hand, outcome
+
 SIGMA = 1e-4
 N = 800
 EXPERIMENT = "creep"
-
-
-def _fit(model: str, effects: tuple, rms_over_noise: float, n_free: int) -> ModelFit:
-    return ModelFit(spec=parse_model(model, EXPERIMENT), effects=effects, params={}, free=[f"p{i}" for i in range(n_free)],
-                    rms=rms_over_noise * SIGMA, predicted=np.zeros(3))
-
-
-def _bic(rms_over_noise: float, k: int) -> float:
-    return N * math.log((rms_over_noise * SIGMA) ** 2) + k * math.log(N)
+_fit = partial(outcome, experiment=EXPERIMENT, sigma=SIGMA)
+_bic = partial(bic_by_hand, n=N, sigma=SIGMA)
 
 
 LINEAR = _fit("linear", (), 260.0, 2)

@@ -7,27 +7,19 @@ what it records; the rule is checked against the BIC worked by hand."""
 
 from __future__ import annotations
 
-import math
-
-import numpy as np
+from functools import partial
 
 from tether.discover import search, stand_in
-from tether.discover.fitting import ModelFit
 from tether.discover.records import Step
 from tether.models import parse_model
+
+from fit_outcomes import bic_by_hand, outcome
 
 SIGMA = 4e-5
 N = 720
 EXPERIMENT = "creep"
-
-
-def _fit(model: str, effects: tuple, rms_over_noise: float, n_free: int) -> ModelFit:
-    return ModelFit(spec=parse_model(model, EXPERIMENT), effects=effects, params={}, free=[f"p{i}" for i in range(n_free)],
-                    rms=rms_over_noise * SIGMA, predicted=np.zeros(3))
-
-
-def _bic(rms_over_noise: float, k: int) -> float:
-    return N * math.log((rms_over_noise * SIGMA) ** 2) + k * math.log(N)
+_fit = partial(outcome, experiment=EXPERIMENT, sigma=SIGMA)
+_bic = partial(bic_by_hand, n=N, sigma=SIGMA)
 
 
 #: what the search ended with on a ramped creep test of an exponential tether: Bouc-Wen (the
