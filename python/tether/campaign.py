@@ -123,11 +123,24 @@ def use_fmu(shipped: tuple[str, bytes, str]) -> None:
                             f"{version}: install the client's version on every worker")
     path = _shipped.get(digest)
     if path is None:
-        folder = Path(tempfile.mkdtemp(prefix="tether-fmu-"))
-        target = folder / "KevlarTether.fmu"
-        target.write_bytes(data)
-        path = _shipped[digest] = str(target)
+        path = _shipped[digest] = str(_shipped_file(digest, data))
     os.environ["KT_FMU"] = path
+
+
+def _shipped_file(digest: str, data: bytes) -> Path:
+    """The shipped FMU as one file of the temporary directory per FMU (its digest), written by the
+    first worker process of this machine and shared by the rest: a worker closed with its cluster
+    runs no exit handler, and a file of its own per process was left behind each time (with its
+    extracted folder, tether.fmu). Written beside it and renamed into place, never seen half
+    written."""
+    target = Path(tempfile.gettempdir()) / f"tether-fmu-shipped-{digest[:16]}.fmu"
+    if target.is_file() and target.stat().st_size == len(data):
+        return target
+    fd, part = tempfile.mkstemp(prefix=target.name + ".", suffix=".part", dir=target.parent)
+    with os.fdopen(fd, "wb") as f:
+        f.write(data)
+    os.replace(part, target)
+    return target
 
 
 # ---------------------------------------------------------------------------------------------

@@ -8,7 +8,7 @@ into a temporary directory that is removed at exit.
 
 from __future__ import annotations
 
-import atexit
+import hashlib
 import os
 import shutil
 import tempfile
@@ -79,25 +79,45 @@ def _key(path: Path):
 
 
 def extract(path: Path | None = None) -> tuple[Path, tuple]:
-    """Extract the FMU once per process; returns (directory, cache key)."""
-    import fmpy
-
+    """The FMU's files, extracted once per FMU file (_shared_extraction); returns (directory, cache
+    key)."""
     path = fmu_path() if path is None else Path(path)
     key = _key(path)
     with _lock:
         d = _extracted.get(key)
         if d is None:
-            d = Path(tempfile.mkdtemp(prefix="tether-fmu-"))
-            atexit.register(shutil.rmtree, d, True)
-            try:
-                # sources/ (88 files) and documentation/ are not needed to run it: extracting them
-                # was half the start-up of `tether simulate`
-                fmpy.extract(str(path), unzipdir=str(d),
-                             include=lambda name: not name.startswith(("sources/", "documentation/")))
-            except Exception as e:  # noqa: BLE001 - a broken zip is a user-level error
-                raise FMUError(f"{path}: cannot extract the FMU ({e}); {SETUP_HINT}") from None
-            _extracted[key] = d
+            d = _extracted[key] = _shared_extraction(path, key)
     return d, key
+
+
+def _shared_extraction(path: Path, key: tuple) -> Path:
+    """The FMU's files in one folder of the temporary directory per FMU file (its path, time and
+    size), shared by every process that runs it and extracted by the first: a process that is
+    killed (a Dask worker closed with its cluster, a test worker) runs no exit handler, and a
+    folder of its own per process was left behind each time. Extracted into a folder of its own,
+    then renamed into place, so no process sees it half written."""
+    import fmpy
+
+    digest = hashlib.sha1(repr(key).encode()).hexdigest()[:16]
+    d = Path(tempfile.gettempdir()) / f"tether-fmu-{digest}"
+    if (d / "modelDescription.xml").is_file():
+        return d
+    part = Path(tempfile.mkdtemp(prefix=f"tether-fmu-{digest}-part-"))
+    try:
+        # sources/ (88 files) and documentation/ are not needed to run it: extracting them was half
+        # the start-up of `tether simulate`
+        fmpy.extract(str(path), unzipdir=str(part),
+                     include=lambda name: not name.startswith(("sources/", "documentation/")))
+        os.rename(part, d)
+    except OSError:
+        if not (d / "modelDescription.xml").is_file():      # not another process's rename that won
+            shutil.rmtree(part, True)
+            raise FMUError(f"{path}: cannot extract the FMU into {d}; {SETUP_HINT}") from None
+    except Exception as e:  # noqa: BLE001 - a broken zip is a user-level error
+        shutil.rmtree(part, True)
+        raise FMUError(f"{path}: cannot extract the FMU ({e}); {SETUP_HINT}") from None
+    shutil.rmtree(part, True)                                   # where another process's rename won
+    return d
 
 
 def model_description(path: Path | None = None) -> Description:
