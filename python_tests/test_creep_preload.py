@@ -1,15 +1,13 @@
 """A load-rig record that starts under a preload hung before it (creep_preload_age): the creep
 states start where that hold left them, in the FMU and in the identification engine, against the
 closed forms of docs/models.md (Kelvin cells, primary creep) and against a record of the hold itself
-(the slip law, which has no closed form); the refusals; the nuisance parameter a fit and a
-discovery free on load-rig records with creep.
+(the slip law, which has no closed form); the refusals; the nuisance parameter a fit frees on
+load-rig records with creep (discovery keeps it at 0: docs/discovery.md, "A preload's creep").
 
 Every expectation is a closed form written out here or a second run of the FMU, never earlier
 output. Measured figures are printed as 'FIGURE ...' lines (pytest -s shows them).
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import pytest

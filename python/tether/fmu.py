@@ -2,8 +2,8 @@
 
 The FMU is ``$KT_FMU`` if that variable is set, else the one installed inside the package, else
 ``<repo root>/build/KevlarTether.fmu`` (built by ``scripts/setup.sh``; see :mod:`tether.resources`).
-It is extracted once per process (per FMU file and modification time)
-into a temporary directory that is removed at exit.
+It is extracted once per FMU file (its path, modification time and size) into a folder of the
+temporary directory that every process running that file shares (_shared_extraction).
 """
 
 from __future__ import annotations
