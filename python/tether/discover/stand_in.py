@@ -25,10 +25,15 @@ from .starts import _reduced_starts
 class StandIn:
     """The plan's stage "stand-ins" (swap_stand_ins), on search.Search's state."""
 
+    #: (the model judged, its impostors): the plan's condition and the stage ask of the same model
+    _impostors_of: tuple | None = None
+
     def impostors(self) -> list[str]:
         """The named effects (not the start model's) that do not act as themselves in the current
         model (acts_as_itself; slack judged against the model without it)."""
         cur = self.cur
+        if self._impostors_of is not None and self._impostors_of[0] is cur:
+            return list(self._impostors_of[1])
         out = []
         for e in cur.effects:
             if e in self.base_effects:
@@ -37,7 +42,8 @@ class StandIn:
                                      self.sigma, e, "")
             if not acts:
                 out.append(e)
-        return out
+        self._impostors_of = (cur, out)
+        return list(out)
 
     def stand_in_laws(self, effect: str) -> list[tuple[str, str]]:
         """(other named effect, one of its other laws) for each law of each other named effect with
