@@ -2,7 +2,7 @@
 states start where that hold left them, in the FMU and in the identification engine, against the
 closed forms of docs/models.md (Kelvin cells, primary creep) and against a record of the hold itself
 (the slip law, which has no closed form); the refusals; the nuisance parameter a fit frees on
-load-rig records with creep (discovery keeps it at 0: docs/discovery.md, "A preload's creep").
+load-rig records with creep, in a fit and in a discovery (docs/discovery.md, "A preload's creep").
 
 Every expectation is a closed form written out here or a second run of the FMU, never earlier
 output. Measured figures are printed as 'FIGURE ...' lines (pytest -s shows them).
@@ -115,7 +115,7 @@ def test_the_preload_age_is_a_nuisance_of_load_rig_records_with_creep(write_trac
     assert NZ.law_refusal("creep_preload_age", parse_model("linear+creep", "creep")) is None
     assert "creep is off" in NZ.law_refusal("creep_preload_age", parse_model("cubic", "creep"))
     lo, hi, start, scaling = NZ.nuisance_box(load, "creep_preload_age")
-    assert scaling == "linear" and lo == 0.0 and hi > 1e2 * 3590.0 * 0.99 and lo < start < hi
+    assert scaling == "linear" and lo == 0.0 and hi > 1e2 * 3590.0 * 0.99 and start == NZ.stated_values(load)["creep_preload_age"]
     grid = NZ.preload_age_grid(load)
     assert grid[0] == 0.0 and grid[1] == 10.0 and grid[-1] == hi and all(b > a for a, b in zip(grid, grid[1:]))
     assert NZ.stated_values(load)["creep_preload_age"] == 0.0
@@ -148,3 +148,65 @@ def test_a_fit_with_the_preload_age_free_reaches_the_noise_where_a_fit_from_rest
     assert rest.rms > 1.5 * noise
     assert aged.rms < 1.1 * noise
     assert lo <= 900.0 <= hi and hi - lo < 900.0
+
+
+def _preloaded_load_unload(write_trace, name: str, truth: dict, noise: float):
+    """A load-unload test drawn by the engine: 10 N hung ``creep_preload_age`` before the first
+    sample, then 60 N for 200 s and 10 N for 200 s (ramps of 20 s, one sample a second)."""
+    from tether.discover.fitting import predict
+
+    t = np.arange(0.0, 440.0, 1.0)
+    load = np.interp(t, [0.0, 20.0, 40.0, 240.0, 260.0, 440.0], [10.0, 10.0, 60.0, 60.0, 10.0, 10.0])
+    blank = read_trace(write_trace(f"{name}_blank", write_trace.meta("load_unload"),
+                                   {"time": t, "load": load, "elongation": 0 * t}))
+    u = predict(blank, parse_model("linear+creep", "load_unload"), truth)
+    u = u + np.random.default_rng(5).normal(0.0, noise, t.size)
+    return read_trace(write_trace(name, write_trace.meta("load_unload"), {"time": t, "load": load, "elongation": u}))
+
+
+#: a fast Kelvin cell (a minute) in balance with the preload when the record starts
+FAST_CELL = dict(EA=3000.0, creep_J1=6e-6, creep_tau1=60.0, creep_J2=0.0, creep_J3=0.0, slip_capacity0=0.0,
+                 creep_preload_age=3600.0)
+
+
+def test_a_fit_with_the_preload_age_free_ends_no_worse_than_with_the_age_at_zero(write_trace):
+    """The model with the age at 0 is inside the model with the age free, so the fit with it free
+    must end at least as low, from the same start: the law is fitted with the age at its stated
+    value first (tether.fit.memory.SCANNED_AFTER_LAW), then the age is scanned and freed."""
+    from tether.fit import fit_traces
+
+    noise = 2e-5
+    trace = _preloaded_load_unload(write_trace, "fast_cell", FAST_CELL, noise)
+    free = ["EA", "creep_J1", "creep_tau1", "offset_measured"]
+    fixed = dict(creep_J2=0.0, creep_J3=0.0, slip_capacity0=0.0)
+    start = dict(EA=2500.0, creep_J1=3e-6, creep_tau1=300.0)
+    rest = fit_traces([trace], "linear+creep", free=free, fixed=fixed, start=start)
+    aged = fit_traces([trace], "linear+creep", free=free + ["creep_preload_age"], fixed=fixed, start=start)
+    print(f"FIGURE load-unload under a 10 N preload in balance with a 60 s cell: age at 0 {rest.rms / noise:.2f} x "
+          f"noise, age free {aged.rms / noise:.2f} x noise (age {aged.values['creep_preload_age']:.0f} s, tau1 "
+          f"{aged.values['creep_tau1']:.1f} s)")
+    assert rest.rms > 1.5 * noise
+    assert aged.rms <= rest.rms and aged.rms < 1.1 * noise
+    assert aged.values["creep_tau1"] == pytest.approx(60.0, rel=0.1)
+
+
+def test_discovery_frees_the_preload_age_and_the_fast_cells_of_a_load_unload_test(write_trace):
+    """A load-unload test under a preload with a cell of a minute: discovery frees the preload's age
+    (a nuisance of load-rig records whose first load is not zero) and the cells' time constants, and
+    names creep alone within the noise; a record whose first load is 0 has no preload age."""
+    from tether import discover as D
+
+    noise = 2e-5
+    trace = _preloaded_load_unload(write_trace, "fast_cell_d", FAST_CELL, noise)
+    assert "creep_preload_age" in D.nuisance_parameters(trace)
+    t = np.arange(0.0, 100.0, 1.0)
+    unloaded = read_trace(write_trace("from_zero", write_trace.meta("load_unload"),
+                                      {"time": t, "load": np.minimum(t, 50.0), "elongation": t * 1e-5}))
+    assert "creep_preload_age" not in D.nuisance_parameters(unloaded)
+    res = D.discover(trace)
+    doc = D.discovery_document(res)
+    print(f"FIGURE discovery of the preloaded fast cell: named {doc['added_effects']}, "
+          f"{doc['rmse_final'] / noise:.2f} x noise, age {doc['nuisance']['parameters']['creep_preload_age']['value']:.0f} s, "
+          f"{doc['seconds']:.1f} s")
+    assert doc["added_effects"] == ["creep"]
+    assert doc["rmse_final"] < 1.5 * noise

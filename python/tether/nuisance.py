@@ -289,7 +289,7 @@ def nuisance_box(trace: Trace, name: str, mass_band: float | None = None) -> tup
 #: the preload's age a fit may reach, relative to the record's duration (beyond: every creep time
 #: scale a record can show has run its course); where it starts, relative to the duration
 PRELOAD_AGE_LONGEST = 1e2
-PRELOAD_AGE_START = 1.0
+PRELOAD_AGE_START = 0.0
 #: the ratio of neighbours on the grid of preload ages a fit scans (preload_age_grid)
 PRELOAD_AGE_GRID_RATIO = 2.0
 

@@ -38,6 +38,8 @@ def nuisance_parameters(trace: Trace) -> list[str]:
         names += ["x0", "v0"] if trace.experiment == "forced" else ["x0"]
         if trace.experiment == "forced" and NZ.starts_in_motion(trace):
             names.append("last_reversal_beyond")
+    if trace.rig == "load":
+        names += list(NZ.LOAD_STATE)
     form = NZ.mass_form(trace)
     if form:
         names.append(form)

@@ -17,7 +17,7 @@ from ..blas import in_one_blas_thread
 from ..models import IWAN_EPS, ModelSpec
 from ..traces import Trace, read_trace
 from .experiments import TraceExperiment, fitted_count, predict, trace_experiment
-from .memory import GRIDS, scan_memory
+from .memory import GRIDS, SCANNED_AFTER_LAW, scan_memory
 from .parameters import (FIRST_STAGE, bounds_and_start, check_names, default_free_parameters, fmu_bounds,
                          fmu_defaults, model_spec)
 from .result import FitError, FitProgress, FitResult
@@ -207,6 +207,9 @@ def _stages(free_names: list[str]) -> list[tuple[str, list[str]]]:
     if base and len(base) + len(nuisance_free) < len(free_names):
         stages.append(("elastic law + viscous damping" + (" + nuisance" if nuisance_free else ""),
                        base + nuisance_free))
+    held = [n for n in free_names if n in SCANNED_AFTER_LAW]
+    if held and len(held) < len(free_names):
+        stages.append((f"all but {', '.join(held)}", [n for n in free_names if n not in held]))
     stages.append(("all free parameters", list(free_names)))
     return stages
 

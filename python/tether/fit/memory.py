@@ -15,6 +15,10 @@ from ..traces import Trace
 MEMORY = "last_reversal_beyond"
 #: each scanned state's grid (a function of the trace)
 GRIDS = {MEMORY: NZ.last_reversal_grid, "creep_preload_age": NZ.preload_age_grid}
+#: the states held at their start while the law's other parameters are fitted, then scanned: the
+#: law found without the state is a start the scan can only improve on (a preload's creep, whose
+#: error is flat once the age passes a cell's time; docs/discovery.md, "A preload's creep")
+SCANNED_AFTER_LAW = ("creep_preload_age",)
 #: the parameters that move with the state (the bank's force at the start moves the payload's
 #: state; the preload's creep moves the elongation's start): at each value of the grid they are
 #: corrected along their columns of the Jacobian
