@@ -222,7 +222,8 @@ def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
     """What a discovery fit frees: the elastic law (EA; a1 a2 a3; Kawabata's LT RT F_ref and, in
     load tests, the residual strain), the damping in the payload rig (c0; c1 c2), Bouc-Wen's A beta
     gamma, the Iwan element stiffnesses (iw_k1..8, on the estimate's grid of slip strains), and the
-    creep compliances and slip (creep_J1..3, slip_capacity0, slip_rate). Unlike
+    creep compliances, time constants and slip (creep_J1..3, creep_tau1..3, slip_capacity0,
+    slip_rate; KELVIN_TIMES, CREEP_SHAPE). Unlike
     tether.fit's defaults, a creep test frees the cubic too: two load levels leave one direction of
     it undetermined, but discovery asks only whether the law lowers the error."""
     from ..fit.parameters import CREEP_FREE_BY_LAW, law_free_parameters
@@ -232,18 +233,18 @@ def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
     if spec.rig == "payload" and spec.damping == "displacement":
         names.append("c_drag")   # nonlinear damping through the displacement or through the speed
     if spec.creep:
-        # a load-unload test (minutes) sees the fast cells and the slip rate; a creep test (hours
-        # of holds) the time constants and the slip's shape as well
         shape = CREEP_SHAPE[spec.creep_law] if experiment == "creep" else ()
-        names += list(CREEP_FREE_BY_LAW[spec.creep_law] + shape)
+        names += list(CREEP_FREE_BY_LAW[spec.creep_law] + KELVIN_TIMES + shape)
     return names
 
 
-#: the creep terms discovery frees in a creep test beyond tether.fit's CREEP_FREE_BY_LAW, by creep
-#: law: the Kelvin cells' time constants, and the slip's shape beside them
-_KELVIN_TIMES = ("creep_tau1", "creep_tau2", "creep_tau3")
-CREEP_SHAPE = {"kelvin_slip": _KELVIN_TIMES + ("slip_knee", "slip_regen_tau", "slip_limit", "slip_load_half"),
-               "primary": _KELVIN_TIMES}
+#: the creep terms discovery frees beyond tether.fit's CREEP_FREE_BY_LAW: the Kelvin cells' time
+#: constants in every record (a load-unload test of minutes shows cells of seconds to minutes, not
+#: the hours the FMU's defaults hold them at), and in a creep test (hours of holds) the slip's shape
+#: beside them, by creep law
+KELVIN_TIMES = ("creep_tau1", "creep_tau2", "creep_tau3")
+CREEP_SHAPE = {"kelvin_slip": ("slip_knee", "slip_regen_tau", "slip_limit", "slip_load_half"),
+               "primary": ()}
 
 
 def _floor(name: str, sc: _Scales) -> float:
