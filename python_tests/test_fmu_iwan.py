@@ -218,3 +218,45 @@ def test_model_exchange_locates_the_reversals_as_co_simulation_does():
     print(f"FIGURE Iwan CS vs ME: largest |x_CS - x_ME| {err:.3g} m over a swing of {swing:.3g} m; "
           f"ME against the generator {float(np.max(np.abs(me['displacement'] - x_gen))):.3g} m")
     assert err < 1e-5 * swing
+
+
+@pytest.mark.parametrize("relaxed", [20.0, 10.0])
+def test_a_load_rig_bank_unloaded_at_a_load_before_the_record_follows_masing_from_there(relaxed):
+    """iwan_relaxed_load = Tr: the elements start unloaded at the strain Tr / EA (a tether shaken down
+    under Tr), then follow the load monotonically to the first load (20 N) and on. With a linear law,
+    EA eps + H(eps - Tr / EA) = T, so the strain is Tr / EA plus the generator's quasi-static strain
+    of a virgin bank under T - Tr, prepended with its start at T = Tr. The engine agrees."""
+    from tether import identify_native as idn
+
+    nodes = [20.0, 60.0, 5.0, 45.0, 20.0]
+    load = np.concatenate([np.linspace(a, b, 41)[:-1] for a, b in zip(nodes[:-1], nodes[1:])] + [[20.0]])
+    times = np.arange(len(load)) * 0.1
+    K, E = [30 * k for k in K_EL], [10 * e for e in EPS_EL]
+    bank = dict(hysteresis=4) | {f"iw_k{i + 1}": K[i] for i in range(8)} | {f"iw_eps{i + 1}": E[i] for i in range(8)}
+    values = dict(rig=3, stiffness=1, creep=False, EA=EA, L0=L0, rtol=1e-10, iwan_relaxed_load=relaxed) | bank
+    inst = H.cs(values | dict(load=float(load[0])))
+    r = H.run_cs(inst, times, ["strain"], inputs=lambda t: {"load": float(load[min(int(round(t / 0.1)) + 1, len(load) - 1)])})
+    inst.free()
+    shifted = np.concatenate([[0.0], load - relaxed])
+    expected = relaxed / EA + he._quasi_static(_Linear(EA), he.Iwan(K, [k * e for k, e in zip(K, E)]), shifted)[1:]
+    virgin = he._quasi_static(_Linear(EA), he.Iwan(K, [k * e for k, e in zip(K, E)]), load)
+    exp = idn.Experiment(times, settings={k: float(v) for k, v in values.items()}, input_kind=idn.INPUT_LOAD,
+                         input=np.asarray(load, float), input_der=np.zeros((len(times), 3)), output="strain")
+    # with zero derivatives the engine holds each sample's load over the interval after it, where
+    # the FMU above is given the next sample's load over the interval before it: one sample apart
+    engine = idn.simulate(exp)
+    err = float(np.max(np.abs(r["strain"] - expected)))
+    err_engine = float(np.max(np.abs(engine[1:] - expected[:-1])))
+    moved = float(np.max(np.abs(expected - virgin)))
+    print(f"FIGURE Iwan load rig unloaded at {relaxed:g} N before a record from 20 N: largest |strain - closed form| "
+          f"FMU {err:.3g}, engine {err_engine:.3g}; the start moves the strain by up to {moved:.3g} from a virgin bank's")
+    assert moved > 1e3 * err
+    assert err < 1e-9 * float(np.max(expected)) and err_engine < 1e-9 * float(np.max(expected))
+
+
+def test_a_relaxed_load_on_the_payload_rig_or_below_zero_is_refused_with_its_value():
+    bank = dict(hysteresis=4, iw_k1=100.0, iw_eps1=1e-4)
+    for values, text in ((dict(rig=2, m=M, g=G, iwan_relaxed_load=5.0), "iwan_relaxed_load = 5 N"),
+                         (dict(rig=3, load=10.0, iwan_relaxed_load=-1.0), "iwan_relaxed_load = -1")):
+        with pytest.raises(Exception, match=text):
+            H.cs(dict(stiffness=1, EA=EA, L0=L0, creep=False) | bank | values)

@@ -57,6 +57,9 @@ typedef struct {
     /* load rig, creep: how long the first load had hung on a tether free of creep before the record
      * started (0: the record starts free of creep; laws.h: creep_after_hold) */
     double creep_preload_age;
+    /* load rig, Iwan: the load at which the elements were last unloaded before the record, from where
+     * the tether was brought monotonically to the first load (0: a virgin tether) */
+    double iwan_relaxed_load;
 } tether_params;
 
 /* Inputs. force and load may carry time derivatives up to third order (input interpolation): from

@@ -254,6 +254,12 @@ int tether_check(const tether_model *M, char *msg, size_t len)
     if (p->creep_preload_age > 0.0 && p->rig != RIG_LOAD)
         FAIL("creep_preload_age = %g s: a preload's creep is a load-rig record's (rig = 3); rig = %d starts free of creep",
              p->creep_preload_age, p->rig);
+    if (!(p->iwan_relaxed_load >= 0.0) || !isfinite(p->iwan_relaxed_load))
+        FAIL("iwan_relaxed_load = %g N: expected the load at which the Iwan elements were last unloaded, finite and >= 0",
+             p->iwan_relaxed_load);
+    if (p->iwan_relaxed_load > 0.0 && p->rig != RIG_LOAD)
+        FAIL("iwan_relaxed_load = %g N: a load the bank was unloaded at is a load-rig record's (rig = 3); rig = %d "
+             "starts its bank as its own initial state says", p->iwan_relaxed_load, p->rig);
     if (!isfinite(p->last_reversal_beyond)) FAIL("last_reversal_beyond = %g m: expected a finite distance", p->last_reversal_beyond);
     if (p->stiffness == STIFFNESS_LINEAR && p->hysteresis != HYSTERESIS_KAWABATA && !(p->EA > 0.0)) FAIL("EA = %g N: the linear law needs EA > 0", p->EA);
     if (p->stiffness == STIFFNESS_BILINEAR && p->hysteresis != HYSTERESIS_KAWABATA) {
@@ -359,6 +365,26 @@ static int preload_creep(const tether_model *M, double t0, double *y, char *msg,
     return 0;
 }
 
+/* The load rig's Iwan bank at the first load T0: its elements unloaded at the strain the elastic law
+ * alone stretches under iwan_relaxed_load (0: a virgin tether, unloaded at zero strain), then brought
+ * monotonically to the strain that carries T0 (*eps: the elastic law's alone on entry, the bank's
+ * on return). */
+static int iwan_rig_start(tether_model *M, double T0, double *eps, char *msg, size_t len)
+{
+    const tether_params *p = &M->p;
+    double eps_r = 0.0;
+    if (p->iwan_relaxed_load > 0.0 && elastic_strain_below(p, p->iwan_relaxed_load, M->d.rising_limit, &eps_r) != 0) {
+        snprintf(msg, len, "iwan_relaxed_load = %g N: exceeds the largest tension %g N the elastic law carries (at "
+                 "strain %g)", p->iwan_relaxed_load, elastic_tension(p, M->d.rising_limit), M->d.rising_limit);
+        return -1;
+    }
+    iwan_reset(&M->d.iwan, eps_r);
+    if ((T0 > 0.0 || eps_r > 0.0) && iwan_rig_strain_at(M, T0, *eps, eps) != 0) *eps = M->d.rising_limit;
+    iwan_advance(p, &M->d.iwan, *eps);
+    M->d.iwan.direction = *eps >= eps_r ? 1 : -1;
+    return 0;
+}
+
 static double last_reversal(double x0, double beyond)
 {
     return beyond > 0.0 ? fabs(x0) + beyond : -fabs(x0) + beyond;
@@ -409,11 +435,7 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
                      input_load(M, t0), elastic_tension(p, M->d.rising_limit), M->d.rising_limit);
             return -1;
         }
-        if (p->hysteresis == HYSTERESIS_IWAN) {
-            /* a virgin tether, its elements unloaded at zero strain, loaded to the first load */
-            if (T0 > 0.0 && iwan_rig_strain_at(M, T0, eps, &eps) != 0) eps = M->d.rising_limit;
-            iwan_advance(p, &M->d.iwan, eps);
-        }
+        if (p->hysteresis == HYSTERESIS_IWAN && iwan_rig_start(M, T0, &eps, msg, len) != 0) return -1;
         y[ST_LOAD_ELONGATION] = eps * M->in.L0;
     } else if (p->hysteresis == HYSTERESIS_IWAN) {
         /* element rig: unloaded at zero strain, brought to the first elongation monotonically */

@@ -32,7 +32,7 @@ from .traces import Trace
 
 __all__ = ["NUISANCE", "MEASUREMENT", "STATE", "DEFAULT_MASS_BAND", "INPUT_GAIN_BOUNDS", "mass_band_rel",
            "check_mass_band", "mass_bounds", "mass_form", "refusal", "check_free", "freeable", "stated_values",
-           "nuisance_box", "preload_age_box", "preload_age_grid", "last_reversal_estimate", "last_reversal_grid",
+           "nuisance_box", "preload_age_box", "preload_age_grid", "relaxed_load_grid", "last_reversal_estimate", "last_reversal_grid",
            "drive_input", "measured_output", "moved_statement", "of_params_file"]
 
 #: the measurement parameters and their defaults (the engine's own list)
@@ -40,13 +40,16 @@ MEASUREMENT = tuple(MEASUREMENT_DEFAULTS)
 #: the initial state of a payload record (the last reversal: the Iwan bank's memory of it)
 STATE = ("x0", "v0", "last_reversal_beyond")
 #: the initial state of a load-rig record: how long its first load had hung on the tether before it
-#: (the creep that preload left, tether.c: preload_creep)
-LOAD_STATE = ("creep_preload_age",)
+#: (the creep that preload left, tether.c: preload_creep), and the load the Iwan bank was last
+#: unloaded at before it (tether.c: iwan_rig_start)
+LOAD_STATE = ("creep_preload_age", "iwan_relaxed_load")
 #: the nuisance parameters that belong to one law of the model: name -> (what it is, which law,
 #: whether a model has that law)
 LAW_STATE = {"last_reversal_beyond": ("the memory of the iwan hysteresis law", "hysteresis",
                                       lambda spec: spec.hysteresis == "iwan"),
-             "creep_preload_age": ("the creep a preload left", "creep", lambda spec: bool(spec.creep))}
+             "creep_preload_age": ("the creep a preload left", "creep", lambda spec: bool(spec.creep)),
+             "iwan_relaxed_load": ("the load the iwan hysteresis law was last unloaded at", "hysteresis",
+                                   lambda spec: spec.hysteresis == "iwan")}
 #: every nuisance parameter a fit may free, in report order
 NUISANCE = ("m", *STATE, *LOAD_STATE, *MEASUREMENT)
 #: half-width of the mass band, relative, where a trace states no mass_uncertainty_rel
@@ -119,8 +122,8 @@ def refusal(trace: Trace, name: str, free: Sequence[str] = ()) -> str | None:
             return "a periodic record is fitted in its periodic steady state, which forgets the initial state"
     if name in LOAD_STATE:
         if trace.rig != "load":
-            return (f"the {exp} record runs on the payload rig, whose tether starts free of creep (a preload's creep "
-                    "is a load-rig record's)")
+            return (f"the {exp} record runs on the payload rig, whose initial state is its payload's (a preload's "
+                    "creep and the load the Iwan bank was last unloaded at are a load-rig record's)")
         if not float(trace.input[0]) > 0.0:
             return f"the record's first load is {float(trace.input[0]):g} N: no preload hung before it"
     if name in ("offset_input", "input_gain") and trace.input_column is None:
@@ -254,7 +257,7 @@ def stated_values(trace: Trace) -> dict:
     a unit gain)."""
     out = dict(MEASUREMENT_DEFAULTS)
     if trace.rig == "load":
-        out.update(creep_preload_age=0.0)
+        out.update(creep_preload_age=0.0, iwan_relaxed_load=0.0)
     if trace.rig == "payload":
         out.update(m=float(trace.payload_mass_kg), x0=float(trace.initial_displacement_m),
                    v0=float(trace.initial_velocity_m_s), last_reversal_beyond=0.0)
@@ -279,6 +282,8 @@ def nuisance_box(trace: Trace, name: str, mass_band: float | None = None) -> tup
         return -span, span, last_reversal_estimate(trace), "linear"
     if name == "creep_preload_age":
         return preload_age_box(trace)
+    if name == "iwan_relaxed_load":
+        return 0.0, float(np.max(np.asarray(trace.input, float))), 0.0, "linear"
     if name == "input_gain":
         return INPUT_GAIN_BOUNDS[0], INPUT_GAIN_BOUNDS[1], 1.0, "log"
     if name in MEASUREMENT:
@@ -315,6 +320,21 @@ def preload_age_grid(trace: Trace) -> list[float]:
     lo = float(np.min(np.diff(np.asarray(trace.time, float))))
     n = int(math.ceil(math.log(hi / lo) / math.log(PRELOAD_AGE_GRID_RATIO)))
     return [0.0] + [min(lo * PRELOAD_AGE_GRID_RATIO ** i, hi) for i in range(n + 1)]
+
+
+#: the steps of the grid of iwan_relaxed_load a fit scans (relaxed_load_grid) below the first load
+#: and above it
+RELAXED_LOAD_GRID_STEPS = 4
+
+
+def relaxed_load_grid(trace: Trace) -> list[float]:
+    """The loads the Iwan bank may have been last unloaded at that a fit tries before it frees the
+    load with the rest: from 0 (a virgin tether) to the first load (a tether shaken down under it)
+    and on to the record's largest load, RELAXED_LOAD_GRID_STEPS even steps each way."""
+    load = np.asarray(trace.input, float)
+    first, top, n = max(float(load[0]), 0.0), float(np.max(load)), RELAXED_LOAD_GRID_STEPS
+    grid = [first * k / n for k in range(n + 1)] + [first + (top - first) * k / n for k in range(1, n + 1)]
+    return sorted(set(grid))
 
 
 def drive_input(recorded: np.ndarray, derivatives: np.ndarray | None, params: Mapping[str, float]):

@@ -19,12 +19,14 @@ Nuisance parameters (docs/nuisance.md) may be freed beside the law's: m (the eff
 mass, kept within payload_mass_kg * (1 +- --mass-band)), x0, v0 (a forced record that starts in
 motion) and last_reversal_beyond (with the Iwan bank: where that motion last reversed, beyond the
 span [-|x0|, |x0|]), creep_preload_age (a load-rig record with creep: how long its first load had
-hung before it), offset_measured (measured column = model + offset), offset_input and input_gain (the
+hung before it), iwan_relaxed_load (a load-rig record with the Iwan bank: the load it was last unloaded
+at before the record), offset_measured (measured column = model + offset), offset_input and input_gain (the
 model is driven by input_gain * recorded input + offset_input). What a record cannot determine
 is refused: m on a free vibration (every force scales with the mass) or a load-rig record, m
 together with input_gain (one nuisance in two forms), x0/v0 on a periodic or load-rig record,
 last_reversal_beyond in a model without the Iwan bank, creep_preload_age in a model without creep,
-on the payload rig or where the first load is 0.
+iwan_relaxed_load in a model without the Iwan bank, and both on the payload rig or where the first
+load is 0.
 The table then says which nuisance parameters moved from their start, and by how much.
 
 --free names the parameters to fit (default: what the data of each trace's experiment can

@@ -1,7 +1,8 @@
 """A law's state before the record, found on a grid before a fit frees it with the rest: the Iwan
 bank's memory of the run a record was cut from (last_reversal_beyond;
-tether.nuisance.last_reversal_grid says why) and the age of the preload a load-rig record starts
-under (creep_preload_age; tether.nuisance.preload_age_grid)."""
+tether.nuisance.last_reversal_grid says why), the age of the preload a load-rig record starts
+under (creep_preload_age; tether.nuisance.preload_age_grid) and the load a load-rig record's Iwan
+bank was last unloaded at (iwan_relaxed_load; tether.nuisance.relaxed_load_grid)."""
 from __future__ import annotations
 
 import math
@@ -14,7 +15,8 @@ from ..traces import Trace
 
 MEMORY = "last_reversal_beyond"
 #: each scanned state's grid (a function of the trace)
-GRIDS = {MEMORY: NZ.last_reversal_grid, "creep_preload_age": NZ.preload_age_grid}
+GRIDS = {MEMORY: NZ.last_reversal_grid, "creep_preload_age": NZ.preload_age_grid,
+         "iwan_relaxed_load": NZ.relaxed_load_grid}
 #: the states held at their start while the law's other parameters are fitted, then scanned: the
 #: law found without the state is a start the scan can only improve on (a preload's creep, whose
 #: error is flat once the age passes a cell's time; docs/discovery.md, "A preload's creep")
