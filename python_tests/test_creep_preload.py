@@ -210,3 +210,17 @@ def test_discovery_frees_the_preload_age_and_the_fast_cells_of_a_load_unload_tes
           f"{doc['seconds']:.1f} s")
     assert doc["added_effects"] == ["creep"]
     assert doc["rmse_final"] < 1.5 * noise
+
+
+def test_the_stages_hold_the_preload_age_while_the_law_is_fitted_then_free_everything():
+    """tether.fit's stages with the age free: the elastic law first (with the nuisance parameters
+    that are not a law's state), then every parameter but the age, then all (the scan between)."""
+    from tether.fit.engine import _stages
+
+    free = ["EA", "creep_J1", "creep_tau1", "offset_measured", "creep_preload_age"]
+    stages = _stages(free)
+    assert [names for _, names in stages] == [["EA", "offset_measured"],
+                                              ["EA", "creep_J1", "creep_tau1", "offset_measured"], free]
+    # without the age, or with the Iwan bank's memory (scanned from the first stage's end), no such stage
+    assert len(_stages(free[:-1])) == 2
+    assert len(_stages(["EA", "iw_k1", "last_reversal_beyond"])) == 2
