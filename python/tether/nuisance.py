@@ -301,10 +301,11 @@ PRELOAD_AGE_GRID_RATIO = 2.0
 
 def preload_age_box(trace: Trace) -> tuple[float, float, float, str]:
     """(lower, upper, start, scaling) of creep_preload_age on a load-rig record: from 0 to
-    PRELOAD_AGE_LONGEST times its duration, from PRELOAD_AGE_START of its duration, scaled
-    linearly: at a small age the record sees the age itself (the cells' creep under the preload
-    grows as the age does), which a log scale would hide, and a fit started there ran off to the
-    plateau of large ages (python_tests/test_creep_preload.py)."""
+    PRELOAD_AGE_LONGEST times its duration, from PRELOAD_AGE_START of its duration (0: what the
+    record states; a fit holds it there while it fits the law, then scans the grid,
+    tether.fit.memory.SCANNED_AFTER_LAW), scaled linearly: at a small age the record sees the age
+    itself (the cells' creep under the preload grows as the age does), which a log scale would
+    hide (python_tests/test_creep_preload.py)."""
     t = np.asarray(trace.time, float)
     span = float(t[-1] - t[0])
     return 0.0, PRELOAD_AGE_LONGEST * span, PRELOAD_AGE_START * span, "linear"
