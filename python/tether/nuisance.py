@@ -32,7 +32,8 @@ from .traces import Trace
 
 __all__ = ["NUISANCE", "MEASUREMENT", "STATE", "DEFAULT_MASS_BAND", "INPUT_GAIN_BOUNDS", "mass_band_rel",
            "check_mass_band", "mass_bounds", "mass_form", "refusal", "check_free", "freeable", "stated_values",
-           "nuisance_box", "preload_age_box", "preload_age_grid", "relaxed_load_grid", "last_reversal_estimate", "last_reversal_grid",
+           "nuisance_box", "preload_age_box", "preload_age_grid", "relaxed_load_grid", "last_reversal_estimate",
+           "last_reversal_grid",
            "drive_input", "measured_output", "moved_statement", "of_params_file"]
 
 #: the measurement parameters and their defaults (the engine's own list)
@@ -331,9 +332,10 @@ RELAXED_LOAD_GRID_STEPS = 4
 def relaxed_load_grid(trace: Trace) -> list[float]:
     """The loads the Iwan bank may have been last unloaded at that a fit tries before it frees the
     load with the rest: from 0 (a virgin tether) to the first load (a tether shaken down under it)
-    and on to the record's largest load, RELAXED_LOAD_GRID_STEPS even steps each way."""
-    load = np.asarray(trace.input, float)
-    first, top, n = max(float(load[0]), 0.0), float(np.max(load)), RELAXED_LOAD_GRID_STEPS
+    and on to the upper end of its box (nuisance_box: the record's largest load),
+    RELAXED_LOAD_GRID_STEPS even steps each way."""
+    first, n = max(float(trace.input[0]), 0.0), RELAXED_LOAD_GRID_STEPS
+    top = nuisance_box(trace, "iwan_relaxed_load")[1]
     grid = [first * k / n for k in range(n + 1)] + [first + (top - first) * k / n for k in range(1, n + 1)]
     return sorted(set(grid))
 

@@ -198,7 +198,9 @@ def _engine_options(engine_options: Mapping, exps: list[TraceExperiment], scales
 
 def _stages(free_names: list[str]) -> list[tuple[str, list[str]]]:
     """(name, free) per stage: the elastic law and viscous damping (with the nuisance parameters,
-    which a wrong mass or an offset would otherwise push into the law), then everything."""
+    which a wrong mass or an offset would otherwise push into the law); where a state of
+    SCANNED_AFTER_LAW is free, everything but that state (held at its start; the scan follows);
+    then everything."""
     base = [n for n in free_names if n in FIRST_STAGE]
     # a law's state (the Iwan bank's memory, a preload's creep) is fitted with the law: beside a bank
     # held at its start the memory runs off
