@@ -516,9 +516,10 @@ def test_a_trial_point_that_crawls_is_a_refused_step_not_the_end_of_the_fit():
     # viscous damping far above the truth turns the equations stiff: the optimum's simulation
     # needs about nine times the start's work (c0 = 150 against 15000). A crawl factor of 2 refuses
     # the steps to it, and the fit ends short of the optimum, with a result, not an error; the
-    # default leaves this fit as it is without a crawl cap, to the bit
+    # default leaves this fit as it is without a crawl cap, to the bit. Adams is held: integrator =
+    # auto takes BDF where the damping is this stiff, and BDF does not crawl there
     truth = dict(TRUTH_SIMPLE, c0=15000.0)
-    e = _synthetic(dict(SIMPLE, x0=-0.1669), truth, 2001, 2e-4, seed=9)
+    e = _synthetic(dict(SIMPLE, x0=-0.1669, integrator=3), truth, 2001, 2e-4, seed=9)
     free = {"c0": (1.0, 1e6, 150.0)}
     before = idn.simulation_work()
     idn.simulate(e, {"c0": 150.0})

@@ -16,6 +16,15 @@ double boucwen_rate(const tether_params *p, double x, double xdot, double z)
     return xdot * (p->bw_A - zn * psi);
 }
 
+double boucwen_saturation_length(const tether_params *p)
+{
+    const double psi = fabs(p->bw_gamma) + fabs(p->bw_beta) + fabs(p->bw_b2) + fabs(p->bw_b3) + fabs(p->bw_b4) +
+                       fabs(p->bw_b5) + fabs(p->bw_b6);
+    if (!(psi > 0.0) || !(p->bw_A > 0.0) || !(p->bw_n > 0.0)) return INFINITY;
+    const double z_bound = pow(p->bw_A / psi, 1.0 / p->bw_n);
+    return 1.0 / (p->bw_n * psi * pow(z_bound, p->bw_n - 1.0));
+}
+
 void boucwen_path(double A, double beta, double gamma, const double *x, int n, int periodic, double *z)
 {
     double zk = 0.0;

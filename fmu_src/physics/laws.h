@@ -79,6 +79,10 @@ void kawabata_rejoin(kawabata_memory *mem);
  * The force scale is fixed to 1 (z is the hysteretic force in newtons), which removes the
  * redundancy among (A, beta, gamma, scale). */
 double boucwen_rate(const tether_params *p, double x, double xdot, double z);
+/* The displacement [m] over which z relaxes onto its bound |z|^n = A / psi, psi the largest
+ * |gamma| + |beta| + |b2| + ... + |b6| can make it: 1 / (n psi z_u^(n-1)), z_u = (A / psi)^(1/n);
+ * 1 / psi for the classic n = 1. A loop this narrow is dry friction; INFINITY where z has no bound. */
+double boucwen_saturation_length(const tether_params *p);
 /* z of the classic law with n = 1 (dz/dx = A - |z| (gamma + beta sgn(dx z))) along a prescribed
  * displacement path x[0..n-1], starting from z = 0: between two samples the sign of z and of dx
  * are fixed, so the law is linear in x and is integrated exactly (z[k] is z at x[k]). periodic:

@@ -618,11 +618,31 @@ void tether_nominals(const tether_model *M, double *nominal)
     nominal[ST_SLIP] = nominal[ST_CAPACITY] = 1e-4;
 }
 
+/* The fastest rate [1/s] at which a dissipative law of the payload rig relaxes: the damping's
+ * coefficient at rest over the payload's mass (a dry friction's smoothed sign is steepest there),
+ * and a Bouc-Wen force's relaxation onto its bound while the tether moves at the speed scale of
+ * tether_nominals (boucwen_saturation_length). */
+static double fastest_relaxation_rate(const tether_model *M)
+{
+    const double speed = 1e-2 * M->in.L0;
+    double rate = damping_coefficient(&M->p, 0.0, 0.0) / M->d.effective_mass;
+    if (M->p.hysteresis == HYSTERESIS_BOUCWEN) rate = fmax(rate, speed / boucwen_saturation_length(&M->p));
+    return rate;
+}
+
+/* The payload's angular frequency [1/s] on the tether's stiffness at its balance stretch. */
+static double swing_rate(const tether_model *M)
+{
+    const double k = static_stiffness(M, M->d.balance_elongation / M->in.L0) / M->in.L0;
+    return sqrt(fmax(k, 0.0) / M->d.effective_mass);
+}
+
 int tether_is_stiff(const tether_model *M)
 {
     if (M->p.integrator == INTEGRATOR_BDF) return 1;
     if (M->p.integrator == INTEGRATOR_ADAMS) return 0;
-    return M->p.creep || M->p.rig == RIG_LOAD;
+    if (M->p.creep || M->p.rig == RIG_LOAD) return 1;
+    return M->p.rig == RIG_PAYLOAD && fastest_relaxation_rate(M) > TETHER_STIFF_RELAXATION * swing_rate(M);
 }
 
 int tether_check_range(tether_model *M, double t, const double *y, char *msg, size_t len)

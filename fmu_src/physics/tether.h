@@ -131,7 +131,13 @@ void tether_compute_outputs(const tether_model *M, double t, const double *y, te
 /* Nominal magnitude of each state (absolute tolerances are rtol times these). */
 void tether_nominals(const tether_model *M, double *nominal);
 
-/* 1 when the problem is stiff (creep time scales, the load rig's relaxation): use BDF. */
+/* integrator = auto takes BDF on the payload rig where a dissipative law relaxes this many times
+ * faster than the payload swings (a narrow Bouc-Wen loop, a sharp dry friction): Adams's steps
+ * would shrink to the relaxation's time scale (docs/models.md, "Integrator") */
+#define TETHER_STIFF_RELAXATION 100.0
+
+/* 1 when the problem is stiff (creep time scales, the load rig's relaxation, a dissipative law far
+ * faster than the swing: TETHER_STIFF_RELAXATION): use BDF. */
 int tether_is_stiff(const tether_model *M);
 
 /* 1 the first time the cubic law is evaluated beyond its rising range (on either side); writes a
