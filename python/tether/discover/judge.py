@@ -42,6 +42,11 @@ class Criteria:
     relax_from_gap: float = 3.0
     #: the held-out fraction, relaxed, never above this: the held-out part must still improve
     heldout_fraction_cap: float = 0.9
+    #: the held-out part is quiet where the model predicts it within the noise (a gap under
+    #: unexplained_gap) and misses the whole record by this many times that gap or more: what is
+    #: missing lies in the part the fit sees (a dry friction that has stopped the swing), and the
+    #: held-out test asks only that the candidate keep predicting it within the noise
+    heldout_quiet_ratio: float = 3.0
     #: a whole-record gap this gross [sigma] ...: a fit to the first part is bent by all that is missing
     gross_gap: float = 20.0
     #: ... shrunk to this fraction by the candidate: the held-out test is not asked
@@ -307,17 +312,31 @@ def heldout_verdict(sigma: float, held_before: float, held_after: float, rms_bef
     halves it (CRITERIA.gross_gap_shrink): then
     the fit to the first part is bent by everything the model still lacks, and its prediction of
     a decayed or quiet last part says little (a free vibration's last 40 % may sit at a few sigma
-    while its first part is at a hundred)."""
+    while its first part is at a hundred). Where the held-out part is quiet (_heldout_quiet), the
+    candidate must only keep predicting it within the noise."""
     if rms_before is not None and rms_after is not None and math.isfinite(rms_after):
         g0, g1 = _gap(rms_before, sigma), _gap(rms_after, sigma)
         if g0 >= CRITERIA.gross_gap * sigma and g1 <= CRITERIA.gross_gap_shrink * g0:
             return True, (f"held-out test not asked: the gap of {g0 / sigma:.0f} sigma is gross and the candidate "
                           f"more than halves it")
     h0, h1 = _gap(held_before, sigma), _gap(held_after, sigma)
+    if rms_before is not None and _heldout_quiet(h0, _gap(rms_before, sigma), sigma):
+        if h1 < CRITERIA.unexplained_gap * sigma:
+            return True, (f"held-out test not asked: the model predicts the held-out part within the noise (gap "
+                          f"{h0 / sigma:.2f} sigma) and misses the whole record by {_gap(rms_before, sigma) / sigma:.2f} "
+                          f"sigma; the candidate predicts it within the noise too ({h1 / sigma:.2f} sigma)")
+        return False, f"on the quiet held-out part the gap goes from {h0 / sigma:.2f} to {h1 / sigma:.2f} sigma"
     frac = min(_required_fraction(CRITERIA.heldout_gap_fraction, h0 / sigma), CRITERIA.heldout_fraction_cap)
     if not h1 <= frac * h0 or not math.isfinite(held_after):
         return False, f"on the held-out part the gap goes from {h0 / sigma:.2f} to {h1 / sigma:.2f} sigma"
     return True, f"held-out gap {h0 / sigma:.2f} -> {h1 / sigma:.2f} sigma"
+
+
+def _heldout_quiet(held_gap: float, whole_gap: float, sigma: float) -> bool:
+    """Whether the held-out part holds nothing the model misses while the whole record does
+    (CRITERIA.heldout_quiet_ratio): it cannot show what a candidate adds there."""
+    return held_gap < CRITERIA.unexplained_gap * sigma and whole_gap >= CRITERIA.heldout_quiet_ratio * max(
+        held_gap, CRITERIA.unexplained_gap * sigma)
 
 
 def _heldout_judges(held: float, rms: float) -> bool:
