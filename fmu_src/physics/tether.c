@@ -624,9 +624,11 @@ void tether_nominals(const tether_model *M, double *nominal)
  * tether_nominals (boucwen_saturation_length). */
 static double fastest_relaxation_rate(const tether_model *M)
 {
-    const double speed = 1e-2 * M->in.L0;
+    double nominal[TETHER_NUMBER_OF_STATES];
+    tether_nominals(M, nominal);
     double rate = damping_coefficient(&M->p, 0.0, 0.0) / M->d.effective_mass;
-    if (M->p.hysteresis == HYSTERESIS_BOUCWEN) rate = fmax(rate, speed / boucwen_saturation_length(&M->p));
+    if (M->p.hysteresis == HYSTERESIS_BOUCWEN)
+        rate = fmax(rate, nominal[ST_VELOCITY] / boucwen_saturation_length(&M->p));
     return rate;
 }
 

@@ -320,10 +320,11 @@ def heldout_verdict(sigma: float, held_before: float, held_after: float, rms_bef
             return True, (f"held-out test not asked: the gap of {g0 / sigma:.0f} sigma is gross and the candidate "
                           f"more than halves it")
     h0, h1 = _gap(held_before, sigma), _gap(held_after, sigma)
-    if rms_before is not None and _heldout_quiet(h0, _gap(rms_before, sigma), sigma):
+    whole = None if rms_before is None else _gap(rms_before, sigma)
+    if whole is not None and _heldout_quiet(h0, whole, sigma):
         if h1 < CRITERIA.unexplained_gap * sigma:
             return True, (f"held-out test not asked: the model predicts the held-out part within the noise (gap "
-                          f"{h0 / sigma:.2f} sigma) and misses the whole record by {_gap(rms_before, sigma) / sigma:.2f} "
+                          f"{h0 / sigma:.2f} sigma) and misses the whole record by {whole / sigma:.2f} "
                           f"sigma; the candidate predicts it within the noise too ({h1 / sigma:.2f} sigma)")
         return False, f"on the quiet held-out part the gap goes from {h0 / sigma:.2f} to {h1 / sigma:.2f} sigma"
     frac = min(_required_fraction(CRITERIA.heldout_gap_fraction, h0 / sigma), CRITERIA.heldout_fraction_cap)
@@ -335,8 +336,8 @@ def heldout_verdict(sigma: float, held_before: float, held_after: float, rms_bef
 def _heldout_quiet(held_gap: float, whole_gap: float, sigma: float) -> bool:
     """Whether the held-out part holds nothing the model misses while the whole record does
     (CRITERIA.heldout_quiet_ratio): it cannot show what a candidate adds there."""
-    return held_gap < CRITERIA.unexplained_gap * sigma and whole_gap >= CRITERIA.heldout_quiet_ratio * max(
-        held_gap, CRITERIA.unexplained_gap * sigma)
+    within = CRITERIA.unexplained_gap * sigma
+    return held_gap < within and whole_gap >= CRITERIA.heldout_quiet_ratio * within
 
 
 def _heldout_judges(held: float, rms: float) -> bool:
