@@ -47,7 +47,7 @@ def test_switches_are_integers_whose_descriptions_list_their_values():
     md = H.model_description()
     v = {x.name: x for x in md.modelVariables}
     for name, values in {"rig": ["element", "payload", "load"], "stiffness": ["linear", "cubic", "exponential", "bilinear"],
-                         "damping": ["viscous", "displacement", "coulomb"],
+                         "damping": ["viscous", "displacement", "coulomb", "amplitude"],
                          "hysteresis": ["none", "kawabata", "boucwen", "iwan"],
                          "integrator": ["auto", "bdf", "adams"]}.items():
         assert v[name].type == "Integer", name

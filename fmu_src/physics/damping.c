@@ -1,6 +1,8 @@
 /* Damping (paper: "the damping coefficient of the tether can be considered as a dynamic changed
  * term related to the displacement"). Kevlar tethers show high damping at large amplitude and very
- * low damping at small amplitude (Jerry and Larry, cited in the paper). */
+ * low damping at small amplitude (Jerry and Larry, cited in the paper): c(x) reads the displacement,
+ * the amplitude law the same c(.) at the amplitude of the swing, which a forced record that sweeps
+ * through its resonance tells apart from the displacement (docs/models.md). */
 #include <math.h>
 
 #include "physics/laws.h"
@@ -49,7 +51,17 @@ static double damping_coulomb(const tether_params *p, double v)
     return p->c_coulomb / p->coulomb_v * (r == 0.0 ? 1.0 : tanh(r) / r);
 }
 
-double damping_coefficient(const tether_params *p, double x, double v)
+/* The magnitude c(.) reads: the displacement |x|, or (amplitude law) the amplitude of the swing the
+ * payload is on, sqrt(x^2 + (v / omega)^2) with omega its angular frequency at the balance: constant
+ * over a free swing of a linear tether, where |x| runs from 0 to the amplitude twice a cycle. Outside
+ * the payload rig (omega = 0) no swing defines an amplitude, and the law reads |x|. */
+static double damping_magnitude(const tether_params *p, double x, double v, double swing_rate)
+{
+    if (p->damping == DAMPING_AMPLITUDE && swing_rate > 0.0) return hypot(x, v / swing_rate);
+    return fabs(x);
+}
+
+double damping_coefficient(const tether_params *p, double x, double v, double swing_rate)
 {
     if (p->damping == DAMPING_VISCOUS) return p->c0;
     if (p->damping == DAMPING_COULOMB) {
@@ -57,10 +69,10 @@ double damping_coefficient(const tether_params *p, double x, double v)
         const double c = p->c0 + damping_coulomb(p, v);
         return c > 0.0 ? c : 0.0;
     }
-    const double ax = fabs(x);
+    const double a = damping_magnitude(p, x, v, swing_rate);
     /* c_drag |v|: the damping force c_drag |v| v of a body moving through air or water, which
      * also damps large amplitudes more than small ones, but through the velocity */
-    const double c = p->c0 + p->c1 * ax + p->c2 * x * x + damping_table(p, ax) + p->c_drag * fabs(v)
+    const double c = p->c0 + p->c1 * a + p->c2 * a * a + damping_table(p, a) + p->c_drag * fabs(v)
                      + damping_coulomb(p, v);
     return c > 0.0 ? c : 0.0; /* a damper takes energy out, never puts it in */
 }

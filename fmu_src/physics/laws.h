@@ -32,8 +32,10 @@ int elastic_strain_below(const tether_params *p, double T, double rising_limit, 
 /* Damping coefficient: c0 (viscous), c(x) = c0 + c1 |x| + c2 x^2 + table(|x|) + c_drag |v|
  * + c_coulomb tanh(v / coulomb_v) / v (displacement-dependent, with an optional velocity-quadratic
  * drag and an optional Coulomb friction force), or c0 + c_coulomb tanh(v / coulomb_v) / v
- * (coulomb: viscous plus dry friction alone); v is the elongation rate. */
-double damping_coefficient(const tether_params *p, double x, double v);
+ * (coulomb: viscous plus dry friction alone), or the displacement law's c(.) at the amplitude
+ * A = sqrt(x^2 + (v / swing_rate)^2) in the place of |x| (amplitude; |x| where swing_rate is 0);
+ * v is the elongation rate, swing_rate the payload's angular frequency at its balance. */
+double damping_coefficient(const tether_params *p, double x, double v, double swing_rate);
 
 /* ---- Kawabata loading/unloading hysteresis ------------------------------------------------ */
 #define KAWABATA_MAX_REVERSALS 64

@@ -7,7 +7,7 @@
 
 typedef enum { RIG_ELEMENT = 1, RIG_PAYLOAD = 2, RIG_LOAD = 3 } tether_rig;
 typedef enum { STIFFNESS_LINEAR = 1, STIFFNESS_CUBIC = 2, STIFFNESS_EXPONENTIAL = 3, STIFFNESS_BILINEAR = 4 } stiffness_law;
-typedef enum { DAMPING_VISCOUS = 1, DAMPING_DISPLACEMENT = 2, DAMPING_COULOMB = 3 } damping_law;
+typedef enum { DAMPING_VISCOUS = 1, DAMPING_DISPLACEMENT = 2, DAMPING_COULOMB = 3, DAMPING_AMPLITUDE = 4 } damping_law;
 typedef enum { HYSTERESIS_NONE = 1, HYSTERESIS_KAWABATA = 2, HYSTERESIS_BOUCWEN = 3, HYSTERESIS_IWAN = 4 } hysteresis_law;
 typedef enum { CREEP_KELVIN_SLIP = 1, CREEP_PRIMARY = 2 } creep_law_choice;
 typedef enum { INTEGRATOR_AUTO = 1, INTEGRATOR_BDF = 2, INTEGRATOR_ADAMS = 3 } integrator_choice;
@@ -31,7 +31,8 @@ typedef struct {
     double pow_F, pow_eps, pow_n;
     double exp_F, exp_eps;
     double toe_EA, toe_eps, toe_width;
-    /* damping: c(x) = c0 + c1 |x| + c2 x^2 + a table over |x| (knots c_table_dx apart),
+    /* damping: c(x) = c0 + c1 |x| + c2 x^2 + a table over |x| (knots c_table_dx apart; the
+     * amplitude law: the same c(.) of the swing's amplitude in the place of |x|),
      * plus c_drag |v| (velocity-quadratic drag) and a Coulomb (dry-friction) force
      * c_coulomb tanh(v / coulomb_v) */
     double c0, c1, c2;

@@ -186,7 +186,7 @@ static void evaluate(const tether_model *M, double t, const double *y, tether_in
     if (p->hysteresis == HYSTERESIS_BOUCWEN) s->z = y[ST_HYSTERETIC_FORCE];
     else if (p->hysteresis == HYSTERESIS_IWAN) s->z = iwan_force(p, &M->d.iwan, s->eps_h);
     else s->z = 0.0;
-    s->c = damping_coefficient(p, s->x, s->udot);
+    s->c = damping_coefficient(p, s->x, s->udot, M->d.swing_rate);
     if (p->rig == RIG_LOAD) {
         /* quasi-static: the mechanical strain follows T = F(eps_m) + z; see tether.h */
         s->T = input_load(M, t);
@@ -238,7 +238,7 @@ int tether_check(const tether_model *M, char *msg, size_t len)
 #define FAIL(...) do { snprintf(msg, len, __VA_ARGS__); return -1; } while (0)
     if (p->rig < RIG_ELEMENT || p->rig > RIG_LOAD) FAIL("rig = %d: expected 1 (element), 2 (payload) or 3 (load)", p->rig);
     if (p->stiffness < STIFFNESS_LINEAR || p->stiffness > STIFFNESS_BILINEAR) FAIL("stiffness = %d: expected 1 (linear), 2 (cubic), 3 (exponential) or 4 (bilinear)", p->stiffness);
-    if (p->damping < DAMPING_VISCOUS || p->damping > DAMPING_COULOMB) FAIL("damping = %d: expected 1 (viscous), 2 (displacement) or 3 (coulomb)", p->damping);
+    if (p->damping < DAMPING_VISCOUS || p->damping > DAMPING_AMPLITUDE) FAIL("damping = %d: expected 1 (viscous), 2 (displacement), 3 (coulomb) or 4 (amplitude)", p->damping);
     if (p->hysteresis < HYSTERESIS_NONE || p->hysteresis > HYSTERESIS_IWAN) FAIL("hysteresis = %d: expected 1 (none), 2 (kawabata), 3 (boucwen) or 4 (iwan)", p->hysteresis);
     if (p->creep_law < CREEP_KELVIN_SLIP || p->creep_law > CREEP_PRIMARY) FAIL("creep_law = %d: expected 1 (kelvin_slip) or 2 (primary)", p->creep_law);
     if (p->integrator < INTEGRATOR_AUTO || p->integrator > INTEGRATOR_ADAMS) FAIL("integrator = %d: expected 1 (auto), 2 (bdf) or 3 (adams)", p->integrator);
@@ -390,6 +390,13 @@ static double last_reversal(double x0, double beyond)
     return beyond > 0.0 ? fabs(x0) + beyond : -fabs(x0) + beyond;
 }
 
+/* The payload's angular frequency [1/s] on the tether's stiffness at its balance stretch. */
+static double swing_rate(const tether_model *M)
+{
+    const double k = static_stiffness(M, M->d.balance_elongation / M->in.L0) / M->in.L0;
+    return sqrt(fmax(k, 0.0) / M->d.effective_mass);
+}
+
 int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t len)
 {
     const tether_params *p = &M->p;
@@ -398,7 +405,7 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
     kawabata_reset(&M->d.kawabata);
     iwan_reset(&M->d.iwan, 0.0);
     M->d.balance_elongation = 0.0;
-    M->d.carried_mass = M->d.effective_mass = 0.0;
+    M->d.carried_mass = M->d.effective_mass = M->d.swing_rate = 0.0;
     M->d.warned_rising_limit = 0;
     M->d.rising_limit = elastic_rising_limit(p);
     M->d.compression_limit = elastic_compression_limit(p);
@@ -415,6 +422,7 @@ int tether_initialize(tether_model *M, double t0, double *y, char *msg, size_t l
             return -1;
         }
         M->d.balance_elongation = eps * M->in.L0;
+        M->d.swing_rate = swing_rate(M);
         y[ST_DISPLACEMENT] = p->x0;
         y[ST_VELOCITY] = p->v0;
         if (p->hysteresis == HYSTERESIS_IWAN) {
@@ -626,17 +634,10 @@ static double fastest_relaxation_rate(const tether_model *M)
 {
     double nominal[TETHER_NUMBER_OF_STATES];
     tether_nominals(M, nominal);
-    double rate = damping_coefficient(&M->p, 0.0, 0.0) / M->d.effective_mass;
+    double rate = damping_coefficient(&M->p, 0.0, 0.0, M->d.swing_rate) / M->d.effective_mass;
     if (M->p.hysteresis == HYSTERESIS_BOUCWEN)
         rate = fmax(rate, nominal[ST_VELOCITY] / boucwen_saturation_length(&M->p));
     return rate;
-}
-
-/* The payload's angular frequency [1/s] on the tether's stiffness at its balance stretch. */
-static double swing_rate(const tether_model *M)
-{
-    const double k = static_stiffness(M, M->d.balance_elongation / M->in.L0) / M->in.L0;
-    return sqrt(fmax(k, 0.0) / M->d.effective_mass);
 }
 
 int tether_is_stiff(const tether_model *M)

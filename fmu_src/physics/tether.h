@@ -66,6 +66,9 @@ typedef struct {
     /* payload rig, computed once at initialisation (with L0 then): M_w, whose weight M_w g the
      * balance carries, and M_eff, the mass the payload's acceleration sees (0 in the other rigs) */
     double carried_mass, effective_mass;
+    /* payload rig: the payload's angular frequency at the balance (the amplitude damping's clock;
+     * 0 in the other rigs), computed once at initialisation */
+    double swing_rate;
     int warned_rising_limit;  /* the cubic was reported outside its rising range */
     /* the elastic law's rising range [compression_limit, rising_limit], computed once at
      * initialisation (with a power term it takes a search, and the load rig asks at every step) */

@@ -20,7 +20,8 @@ a toe of stiffness toe_EA up to the strain toe_eps, then EA, the corner rounded 
 ``kawabata``, ``iwan``: inter-fibre friction, a bank of Jenkins elements beside the elastic law;
 ``primary_creep``: creep with primary creep, a power or the logarithm of time, in the slip's place;
 ``coulomb``: a damping of viscous and dry friction, c0 v + c_coulomb tanh(v / coulomb_v), in the
-place of c(x): it damps small amplitudes more than large ones).
+place of c(x): it damps small amplitudes more than large ones; ``amplitude_damping``: c(.) of the
+payload's swing amplitude sqrt(x^2 + (v / omega)^2) in the place of c(|x|)).
 A string that starts with an effect or a law builds on ``linear``. Names are case-insensitive. Adding something the model
 already has, or two hysteresis laws, or the Kawabata law (which replaces the elastic law) together
 with another elastic law than the linear one, is an error.
@@ -62,14 +63,14 @@ PARAMS_FORMAT = "tether-params/1"
 # values of the FMU's Integer switches (each listed in its description in modelDescription.xml)
 RIG = {"element": 1, "payload": 2, "load": 3}
 STIFFNESS = {"linear": 1, "cubic": 2, "exponential": 3, "bilinear": 4}
-DAMPING = {"viscous": 1, "displacement": 2, "coulomb": 3}
+DAMPING = {"viscous": 1, "displacement": 2, "coulomb": 3, "amplitude": 4}
 HYSTERESIS = {"none": 1, "kawabata": 2, "boucwen": 3, "iwan": 4}
 CREEP_LAW = {"kelvin_slip": 1, "primary": 2}
 
 #: trace-format effect names, in report order
 EFFECTS = ("nonlinear_stiffness", "hysteresis", "nonlinear_damping", "creep", "slack")
 #: law names that may be added with '+'
-LAWS = ("cubic", "exponential", "bilinear", "boucwen", "kawabata", "iwan", "primary_creep", "coulomb")
+LAWS = ("cubic", "exponential", "bilinear", "boucwen", "kawabata", "iwan", "primary_creep", "coulomb", "amplitude_damping")
 
 #: the structural switches: set by the model string, never by a parameter file
 SWITCHES = ("rig", "stiffness", "damping", "hysteresis", "creep", "slack", "creep_law")
@@ -90,7 +91,11 @@ _PARAMS_DISPLACEMENT = ("c0", "c1", "c2", "c_table_dx", "c_table_1", "c_table_2"
                         "c_table_5", "c_table_6", "c_drag", "c_coulomb", "coulomb_v")
 _PARAMS_COULOMB = ("c0", "c_coulomb", "coulomb_v")
 #: each damping law's parameters
-DAMPING_PARAMETERS = {"viscous": _PARAMS_VISCOUS, "displacement": _PARAMS_DISPLACEMENT, "coulomb": _PARAMS_COULOMB}
+#: the damping laws whose coefficient is c0 + c1 a + c2 a^2 (+ a table, drag, friction) of a magnitude
+#: a: the displacement |x|, or the payload's swing amplitude (physics/damping.c)
+C_OF_MAGNITUDE = ("displacement", "amplitude")
+DAMPING_PARAMETERS = {"viscous": _PARAMS_VISCOUS, "displacement": _PARAMS_DISPLACEMENT, "coulomb": _PARAMS_COULOMB,
+                      "amplitude": _PARAMS_DISPLACEMENT}
 _PARAMS_BOUCWEN = ("bw_A", "bw_beta", "bw_gamma", "bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6", "z0")
 #: the Iwan bank: element stiffnesses, then their slip strains (IWAN_ELEMENTS of each)
 IWAN_ELEMENTS = 16
@@ -130,7 +135,7 @@ class ModelSpec:
     """The structural switches of one model (values named as in the FMU switches' descriptions)."""
 
     stiffness: str = "linear"      # linear | cubic | exponential | bilinear
-    damping: str = "viscous"       # viscous | displacement | coulomb
+    damping: str = "viscous"       # viscous | displacement | coulomb | amplitude
     hysteresis: str = "none"       # none | kawabata | boucwen | iwan
     creep: bool = False
     slack: bool = False
@@ -196,7 +201,7 @@ class ModelSpec:
         if self.hysteresis != p.hysteresis:
             terms.append(self.hysteresis)
         if self.damping != p.damping:
-            terms.append("coulomb" if self.damping == "coulomb" else "nonlinear_damping")
+            terms.append(DAMPING_TERM[self.damping])
         if self.creep and not p.creep:
             terms.append("primary_creep" if self.creep_law == "primary" else "creep")
         if self.slack and not p.slack:
@@ -229,6 +234,9 @@ PRESETS: dict[str, ModelSpec] = {
     "full": ModelSpec(stiffness="cubic", damping="displacement", hysteresis="boucwen"),
 }
 
+#: the model-string term of each damping law beyond the viscous one
+DAMPING_TERM = {"displacement": "nonlinear_damping", "coulomb": "coulomb", "amplitude": "amplitude_damping"}
+
 # term -> (switch field, value)
 _TERMS: dict[str, tuple[str, Any]] = {
     "nonlinear_stiffness": ("stiffness", "cubic"),
@@ -241,6 +249,7 @@ _TERMS: dict[str, tuple[str, Any]] = {
     "iwan": ("hysteresis", "iwan"),
     "nonlinear_damping": ("damping", "displacement"),
     "coulomb": ("damping", "coulomb"),
+    "amplitude_damping": ("damping", "amplitude"),
     "creep": ("creep", True),
     "primary_creep": ("creep", True),
     "slack": ("slack", True),

@@ -36,7 +36,17 @@ def restoring_columns(x: np.ndarray, cubic: bool) -> list[np.ndarray]:
     return [x, x ** 2, x ** 3] if cubic else [x]
 
 
-def damping_columns(x: np.ndarray, v: np.ndarray, displacement: bool) -> list[np.ndarray]:
-    """The damping force's columns: viscous v; displacement-dependent v, |x| v, x^2 v."""
-    return [v, np.abs(x) * v, x ** 2 * v] if displacement else [v]
+def damping_magnitude(x: np.ndarray, v: np.ndarray, swing_rate: float = 0.0) -> np.ndarray:
+    """What c(.) reads (physics/damping.c): the displacement |x|, or, given the payload's angular
+    frequency ``swing_rate`` (the amplitude law), the swing's amplitude sqrt(x^2 + (v / swing_rate)^2)."""
+    return np.hypot(x, v / swing_rate) if swing_rate > 0 else np.abs(x)
+
+
+def damping_columns(x: np.ndarray, v: np.ndarray, displacement: bool, swing_rate: float = 0.0) -> list[np.ndarray]:
+    """The damping force's columns: viscous v; displacement-dependent v, a v, a^2 v with a the
+    magnitude c(.) reads (damping_magnitude: |x|, or the amplitude given ``swing_rate``)."""
+    if not displacement:
+        return [v]
+    a = damping_magnitude(x, v, swing_rate)
+    return [v, a * v, a ** 2 * v]
 

@@ -73,7 +73,7 @@ def law_free_parameters(spec: ModelSpec, elastic: bool = True) -> list[str]:
     else:
         names += ["EA"]
     if payload:
-        names += ["c0"] + {"displacement": ["c1", "c2"], "coulomb": ["c_coulomb", "coulomb_v"]}.get(spec.damping, [])
+        names += ["c0"] + {"displacement": ["c1", "c2"], "amplitude": ["c1", "c2"], "coulomb": ["c_coulomb", "coulomb_v"]}.get(spec.damping, [])
     if spec.hysteresis == "boucwen":
         names += ["bw_A", "bw_beta", "bw_gamma"]
     if spec.hysteresis == "iwan":

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import identify_native as idn
-from ..models import ModelSpec
+from ..models import C_OF_MAGNITUDE, ModelSpec
 from ..traces import Trace
 from .elastic import bilinear_from_curve, bilinear_near_linear, cubic_from_taylor, exponential_from_taylor
 from .equation_error import damping_columns, restoring_columns, scaled_lstsq, taut_for_sure
@@ -32,6 +32,7 @@ class _Equation:
     rhs: np.ndarray
     cubic: bool
     displacement: bool
+    swing_rate: float = 0.0   # the amplitude law's clock (equation_error.damping_magnitude); 0: |x|
 
     def solve(self, z, sel, cubic: bool | None = None, displacement: bool | None = None):
         """Least-squares damping and restoring coefficients (damping's first) over the samples
@@ -39,7 +40,7 @@ class _Equation:
         cub = self.cubic if cubic is None else cubic
         dsp = self.displacement if displacement is None else displacement
         K = self.K
-        A = np.column_stack(damping_columns(K.x[sel], K.v[sel], dsp) + restoring_columns(K.x[sel], cub))
+        A = np.column_stack(damping_columns(K.x[sel], K.v[sel], dsp, self.swing_rate) + restoring_columns(K.x[sel], cub))
         b = self.rhs[sel] - (0.0 if z is None else z[sel])
         coef = scaled_lstsq(A, b)
         return coef, b - A @ coef
@@ -54,7 +55,7 @@ def payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
     f_dom = dominant_frequency(t, np.asarray(trace.measured, float))
     K = kinematics(trace, f_dom)
     eq = _Equation(K, K.f - m * K.a, spec.stiffness != "linear" or spec.hysteresis == "kawabata",
-                   spec.damping == "displacement")
+                   spec.damping in C_OF_MAGNITUDE)
     keep = K.use.copy()
     amp = float(np.max(np.abs(K.x[keep]))) or 1e-9
 
@@ -67,6 +68,8 @@ def payload_estimate(trace: Trace, spec: ModelSpec) -> dict:
         if slack_free[keep].sum() > 20:
             keep &= slack_free
     est: dict = {"_k_lin": k_lin, "_c_lin": c_lin, "_amp": amp, "_omega": math.sqrt(max(k_lin, 1e-300) / m)}
+    if spec.damping == "amplitude":
+        eq.swing_rate = est["_omega"]
 
     hysteresis, z = {}, None              # the hysteretic force z along the record, where there is one
     if spec.hysteresis == "boucwen":
@@ -93,7 +96,7 @@ def _bilinear_start(eq: _Equation, z, keep: np.ndarray, damping: np.ndarray, L0:
     """The bilinear law from the restoring force the equation error leaves (the right-hand side
     less the damping and the hysteretic force) along the strain from the balance."""
     K = eq.K
-    D = np.column_stack(damping_columns(K.x[keep], K.v[keep], eq.displacement))
+    D = np.column_stack(damping_columns(K.x[keep], K.v[keep], eq.displacement, eq.swing_rate))
     R = eq.rhs[keep] - D @ np.asarray(damping, float) - (0.0 if z is None else z[keep])
     u = K.x[keep] / L0
     return (bilinear_from_curve(u, R, balance=weight)
@@ -139,7 +142,7 @@ def _iwan_start(eq: _Equation, keep: np.ndarray, L0: float, slack_balance: float
     d = eq.K.x / L0
     if slack_balance is not None:
         d = np.maximum(d + slack_balance, 0.0) - slack_balance
-    cols = damping_columns(eq.K.x, eq.K.v, eq.displacement) + restoring_columns(eq.K.x, eq.cubic)
+    cols = damping_columns(eq.K.x, eq.K.v, eq.displacement, eq.swing_rate) + restoring_columns(eq.K.x, eq.cubic)
     span = 0.5 * float(np.ptp(d[keep])) or 1e-9
     bank = payload_iwan_bank(np.column_stack(cols), [-np.inf] * len(cols), eq.rhs, d, keep, span, eq.K.periodic)
     if bank is None:
