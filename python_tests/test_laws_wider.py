@@ -332,4 +332,5 @@ def test_discovery_offers_the_exponential_law_in_load_tests_only_and_frees_each_
     assert _law_of(primary, "creep") == "primary" and primary == parse_model("linear+primary_creep")
     names = free_parameters(primary, "creep")
     assert {"primary_J", "primary_tau", "primary_n"} <= set(names) and "slip_rate" not in names
-    assert WIDER_LAWS == {"nonlinear_stiffness": ("cubic", "exponential"), "creep": ("kelvin_slip", "primary")}
+    assert WIDER_LAWS == {"nonlinear_stiffness": ("cubic", "exponential"), "creep": ("kelvin_slip", "primary"),
+                          "nonlinear_damping": ("displacement", "amplitude")}

@@ -9,7 +9,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..models import IWAN_EPS, IWAN_EPS_FIT, IWAN_K, ModelSpec
+from ..models import C_OF_MAGNITUDE, IWAN_EPS, IWAN_EPS_FIT, IWAN_K, ModelSpec
 from ..traces import EXPERIMENTS, Trace
 from . import starts as S
 from .scales import _Scales
@@ -83,6 +83,8 @@ class Effect:
 _QUASI_STATIC = ("load", "element")
 _HOURS = "creep acts over minutes to hours under a held load: it cannot show in this record"
 _NEVER_COMPRESSED = ("the tether is never pushed towards compression, where slack would act")
+#: the table of c(.): its knots, the shape group of both laws of a coefficient c0 + c(a)
+_DAMPING_TABLE = ("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5", "c_table_6")
 
 #: the registry of effects and their laws (issue 25): adding a law or an effect is one entry here
 #: (plus the C law and its variables); the tables below are its views
@@ -122,8 +124,12 @@ EFFECTS = (
         {}),
     Effect("nonlinear_damping", "damping", "viscous", (
         # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
-        Law("displacement", S.damping_starts, shapes=(("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5",
-                                     "c_table_6"),), rival="coulomb"),
+        Law("displacement", S.damping_starts, shapes=(_DAMPING_TABLE,), rival="coulomb", wider="amplitude"),
+        # the same c(.) read at the swing's amplitude: a forced record that sweeps through its
+        # resonance holds one amplitude over cycles in which |x| runs from 0 to it and back, and
+        # c(|x|) cannot follow a damping of the amplitude there (generator B's forced sweep with a
+        # saturating c(A): 3.24 x noise with c(x))
+        Law("amplitude", S.damping_starts, rigs=("payload",), shapes=(_DAMPING_TABLE,), added=False),
         # dry friction beside the viscous part: a damping that falls with amplitude, where c(x) and
         # the drag grow with it
         Law("coulomb", S.coulomb_starts, rival="displacement")),
@@ -230,7 +236,7 @@ def free_parameters(spec: ModelSpec, experiment: str) -> list[str]:
 
     spec = spec.for_experiment(experiment)
     names = law_free_parameters(spec)
-    if spec.rig == "payload" and spec.damping == "displacement":
+    if spec.rig == "payload" and spec.damping in C_OF_MAGNITUDE:
         names.append("c_drag")   # nonlinear damping through the displacement or through the speed
     if spec.creep:
         shape = CREEP_SHAPE[spec.creep_law] if experiment == "creep" else ()

@@ -29,6 +29,17 @@ def _knots_unseen(part: Trace, extra: Sequence[str], starts: Sequence[dict | Non
     return tuple(k for k in knots if int(k.rsplit("_", 1)[1]) * dx > reach)
 
 
+def shape_starts(trace: Trace, spec, params: dict, group: Sequence[str], sc: _Scales) -> list[dict]:
+    """Starts of a fit with the shape terms ``group`` free from the model ``spec`` at ``params``: the
+    model as it is (starts._shape_start) and, for the damping table, the table of the equation
+    error beside it (starts._damping_table_start)."""
+    flat = _shape_start(params, group, sc)
+    if not any(g.startswith("c_table_") for g in group):
+        return [flat]
+    ee = _damping_table_start(trace, spec, params, flat["c_table_dx"])
+    return [flat] if ee is None else [flat, {**flat, **ee}]
+
+
 def _shape_groups(cur: ModelFit, skip=frozenset()) -> list:
     """(effect, group) of the shape terms of the named laws (SHAPE_TERMS), less the effects in skip."""
     return [(e, g) for e in cur.effects if e not in skip for g in SHAPE_TERMS.get((e, _law_of(cur.spec, e)), ())]
@@ -47,16 +58,9 @@ def refine_shapes(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit
     if cur.rms <= CRITERIA.within_noise * sigma or not groups:
         return cur, cur_held, []
     out, best = [], None
-
-    def starts(group):
-        flat = _shape_start(cur.params, group, sc)
-        if not any(g.startswith("c_table_") for g in group):
-            return [flat]
-        ee = _damping_table_start(trace, cur.spec, cur.params, flat["c_table_dx"])
-        return [flat] if ee is None else [flat, {**flat, **ee}]
-
     # the groups' fits are independent: side by side
-    group_fits = _side_by_side(lambda eg, alone: fit(trace, cur.spec, cur.effects, starts(eg[1]), extra=eg[1],
+    group_fits = _side_by_side(lambda eg, alone: fit(trace, cur.spec, cur.effects,
+                                                     shape_starts(trace, cur.spec, cur.params, eg[1], sc), extra=eg[1],
                                                      own_thread=alone), groups)
     bics = [bic_change(cur, fm, n) for fm in group_fits]
     # the held-out fits of the groups that lower the BIC, where that prediction can judge: side by side

@@ -15,8 +15,10 @@ from ..traces import Trace
 from .fitting import _heldout, ModelFit
 from .judge import (CRITERIA, _law_judged, _shape_heldout_asked, _shape_judged, bic_change, leaves_unexplained,
                     optimum_judged)
-from .laws import _law_of, _with_law, RIVAL_LAWS, SHAPE_TERMS, WIDER_LAWS
+from .laws import _law_of, _with_law, EFFECT, RIVAL_LAWS, SHAPE_TERMS, WIDER_LAWS
 from .records import Refinement
+from .refine import shape_starts
+from .scales import _Scales
 
 
 #: the work cap of the rival law's fits, as a multiple of the search's, where the elastic law's
@@ -532,13 +534,17 @@ def _exponential_from_cubic(params: dict, strain: float) -> dict:
 def _wider_law_starts(trace: Trace, cur: ModelFit, new, effect: str, law: str) -> list:
     """Starts of the wider law ``new`` of ``effect`` in place of ``law``: the current model's other
     terms with the new law's terms from the data (tether.fit's estimate, the other terms fixed at the
-    current fit's) and, for the exponential law, matched to the cubic's stiffness and its slope at
-    the record's typical strain. (tether.fit's estimate of the whole model is the first start again
-    but for the other terms, which the current fit has better.)"""
-    mine = {k: float(v) for k, v in cur.params.items() if k in new.parameters and k not in _law_terms(effect, law)}
-    estimate = {k: v for k, v in _estimated(trace, new, mine).items() if k in _law_terms(effect, _law_of(new, effect))}
+    current fit's); where the two laws have the same terms (c(.) of the displacement and of the
+    amplitude), the fitted values carried over; and, for the exponential law, matched to the cubic's
+    stiffness and its slope at the record's typical strain. (tether.fit's estimate of the whole
+    model is the first start again but for the other terms, which the current fit has better.)"""
+    own, theirs = _law_terms(effect, law), _law_terms(effect, _law_of(new, effect))
+    mine = {k: float(v) for k, v in cur.params.items() if k in new.parameters and k not in own}
+    estimate = {k: v for k, v in _estimated(trace, new, mine).items() if k in theirs}
     mine.update(_fitted_nuisance(cur))
     starts = [{**mine, **estimate}]
+    if set(own) == set(theirs):
+        starts.append({**mine, **{k: float(v) for k, v in cur.params.items() if k in own}})
     if effect == "nonlinear_stiffness":
         eps = np.asarray(trace.measured, float) / float(trace.length_m)
         typical = float(np.median(eps)) if trace.rig != "payload" else 0.0
@@ -553,21 +559,34 @@ def _wider_law_starts(trace: Trace, cur: ModelFit, new, effect: str, law: str) -
 
 
 def wider_law(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit, cur_held: float, sigma: float, fit,
-              say: Callable[[str], None]):
+              say: Callable[[str], None], sc: _Scales | None = None):
     """The search names effects with its own laws (the cubic, the Kelvin cells and slip); a tether
     that is not ours may follow another law of the same effect (WIDER_LAWS: an exponential
-    stiffness, primary creep as a power or the logarithm of time). Where the final model still
-    misses the record, each named effect that has a wider law is fitted again with it in its place
-    (starts: _wider_law_starts), kept as a rival law is (a lower BIC, the held-out prediction no
-    worse: _law_judged). Tried only then, so a record the search's own laws explain takes no
-    longer. Returns the model, its held-out error and a list of Refinements."""
+    stiffness, primary creep as a power or the logarithm of time, c(.) of the swing's amplitude).
+    Where the final model still misses the record, each named effect that has a wider law is fitted
+    again with it in its place (starts: _wider_law_starts), kept as a rival law is (a lower BIC, the
+    held-out prediction no worse: _law_judged); where it is not kept and the wider law has shapes
+    the model does not free yet, once more with its first shape group free (refine.shape_starts: a
+    damping that saturates with the amplitude needs the table of c(.)). Tried only then, so a record
+    the search's own laws explain takes no longer. Returns the model, its held-out error and a list
+    of Refinements."""
     refinements = []
     for effect, (law, other) in WIDER_LAWS.items():
-        if cur.rms <= CRITERIA.within_noise * sigma or effect not in cur.effects or _law_of(cur.spec, effect) != law:
+        rigs = EFFECT[effect].law(other).rigs
+        if (cur.rms <= CRITERIA.within_noise * sigma or effect not in cur.effects or _law_of(cur.spec, effect) != law
+                or (rigs is not None and trace.rig not in rigs)):
             continue
         new = _with_law(cur.spec, effect, other).for_experiment(trace.experiment)
-        cur, cur_held, r = _law_swapped(trace, part, held_out, cur, cur_held, sigma, fit, new, effect, law,
-                                        _wider_law_starts(trace, cur, new, effect, law),
-                                        lambda k, free=tuple(cur.free): k not in free, say)
+        starts = _wider_law_starts(trace, cur, new, effect, law)
+        reported = (lambda k, free=tuple(cur.free): k not in free)
+        cur, cur_held, r = _law_swapped(trace, part, held_out, cur, cur_held, sigma, fit, new, effect, law, starts,
+                                        reported, say)
         refinements.append(r)
+        shapes = EFFECT[effect].law(other).shapes
+        if not r.accepted and shapes and sc is not None and not set(shapes[0]) <= set(cur.shape):
+            group = shapes[0]
+            shaped = [s for st in starts if st is not None for s in shape_starts(trace, new, st, group, sc)]
+            cur, cur_held, r = _law_swapped(trace, part, held_out, cur, cur_held, sigma, fit, new, effect, law,
+                                            shaped, reported, say, extra=group)
+            refinements.append(r)
     return cur, cur_held, refinements

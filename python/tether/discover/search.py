@@ -718,17 +718,18 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
     def swap_wider_laws(self) -> None:
         """The elastic law and creep fitted again with their wider laws in their place (wider_law),
         where the model still misses the record."""
-        self.swap_laws(rival.wider_law, "while a wider law was fitted", self.say)
+        self.swap_laws(rival.wider_law, "while a wider law was fitted", self.say, sc=self.sc)
 
     def swap_laws(self, stage: Callable, where: str, *args, **options) -> None:
         """A last stage that puts other laws in place (rival.py's ``stage``), its fits with a step
-        candidate's work caps, its result adopted (``where``: for the stop reason)."""
+        candidate's work caps (``extra``: shape terms free, those they replace held), its result
+        adopted (``where``: for the stop reason)."""
         base = self.candidate_cap_factor()
         self.adopt(stage(
             self.trace, self.part, self.held_out, self.cur, self.cur_held, self.sigma,
-            lambda tr, sp, eff, starts, baseline_rms=None: self.fit(
-                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, baseline_rms=baseline_rms,
-                cap_factor=base),
+            lambda tr, sp, eff, starts, baseline_rms=None, extra=(): self.fit(
+                tr, sp, eff, starts, self.sc_part if tr is self.part else self.sc, extra, held=_replaced(extra),
+                baseline_rms=baseline_rms, cap_factor=base),
             *args, **options), where)
 
     def final_fit(self) -> None:

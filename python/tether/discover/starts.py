@@ -81,7 +81,7 @@ def _damping_table_start(trace: Trace, spec: ModelSpec, params: dict, dx: float)
     one the table lands within 4 % of the generator's c(x) at every knot). None where the record
     is not a payload record."""
     from .. import identify_native as idn
-    from ..fit.equation_error import restoring_columns, scaled_lstsq, taut_for_sure
+    from ..fit.equation_error import damping_magnitude, restoring_columns, scaled_lstsq, taut_for_sure
     from ..fit.kinematics import dominant_frequency, kinematics
 
     if trace.rig != "payload" or not dx > 0:
@@ -89,15 +89,15 @@ def _damping_table_start(trace: Trace, spec: ModelSpec, params: dict, dx: float)
     K = kinematics(trace, dominant_frequency(np.asarray(trace.time, float), np.asarray(trace.measured, float)))
     m, g = float(trace.payload_mass_kg), float(trace.gravity_m_s2)
     keep = K.use.copy()
-    if spec.slack and g > 0:
-        k = float(params.get("EA", params.get("a1", 0.0))) / float(trace.length_m)
-        if k > 0:
-            keep &= taut_for_sure(K.x, m, g, k)
+    k = float(params.get("EA", params.get("a1", 0.0))) / float(trace.length_m)
+    if spec.slack and g > 0 and k > 0:
+        keep &= taut_for_sure(K.x, m, g, k)
     rhs = K.f - m * K.a
     if spec.hysteresis == "boucwen" and all(n in params for n in ("bw_A", "bw_beta", "bw_gamma")):
         rhs = rhs - idn.bouc_wen_path(K.x, float(params["bw_A"]), float(params["bw_beta"]), float(params["bw_gamma"]),
                                       K.periodic)
-    s = np.abs(K.x) / dx
+    swing_rate = math.sqrt(k / m) if spec.damping == "amplitude" and k > 0 else 0.0
+    s = damping_magnitude(K.x, K.v, swing_rate) / dx
     hats = [np.clip(1.0 - np.abs(s - j), 0.0, None) for j in range(1, DAMPING_TABLE_KNOTS)]
     hats.append(np.clip(s - (DAMPING_TABLE_KNOTS - 1), 0.0, 1.0))      # the last knot: held beyond
     cols = [K.v] + [h * K.v for h in hats] + restoring_columns(K.x, spec.stiffness == "cubic")
