@@ -83,6 +83,10 @@ class Criteria:
     #: multiple of the winner's: fitted beside the effects named so far, they are not told apart
     #: there, and an effect named later may decide (branch.py carries the loser on)
     rival_tie: float = 1.25
+    #: two effects tie in a step where both pass and their BIC changes differ by less than this: the
+    #: record does not tell them apart (a BIC difference under 2 is "not worth more than a bare
+    #: mention", Kass and Raftery 1995), and naming either would be a guess: neither is named
+    effect_tie_bic: float = 2.0
 
 
 #: the criteria every discovery run judges by
@@ -109,6 +113,30 @@ def rival_tie(win: CandidateResult, others: Sequence[CandidateResult], sigma: fl
             and _law_of(c.fit.spec, c.effect) in others_laws
             and _gap(c.rms, sigma) <= CRITERIA.rival_tie * _gap(win.rms, sigma)]
     return min(tied, key=lambda c: c.rms, default=None)
+
+
+def refuse_tied_effects(results: Sequence[CandidateResult]) -> bool:
+    """Where the best passing candidate of a step and the best passing one of another effect lower
+    the BIC by amounts less than CRITERIA.effect_tie_bic apart, the record cannot tell the two
+    effects apart: every passing candidate is refused, the two tied ones saying so (tied_with).
+    True where they tie."""
+    passing = sorted((c for c in results if c.accepted), key=lambda c: c.bic_change)
+    if not passing:
+        return False
+    win = passing[0]
+    other = next((c for c in passing[1:] if c.effect != win.effect), None)
+    if other is None or other.bic_change - win.bic_change >= CRITERIA.effect_tie_bic:
+        return False
+    for a, b in ((win, other), (other, win)):
+        a.tied_with = b.effect
+        a.verdict += (f"; passes, but so does {b.effect} (BIC {a.bic_change:+.0f} against {b.bic_change:+.0f}, less "
+                      f"than {CRITERIA.effect_tie_bic:g} apart): the record does not tell the two apart, and neither "
+                      f"is named")
+    for c in passing:
+        c.accepted = False
+        if c is not win and c is not other:
+            c.verdict += f"; passes, but {win.effect} and {other.effect} do better and tie"
+    return True
 
 
 def slack_heldout_unasked(added_parameters: int, slack_in_held_part: bool) -> str | None:

@@ -30,6 +30,7 @@ class CandidateResult:
     accepted: bool = False
     seconds_spent: float | None = None      # kept by forget_curves
     outranked_by: str = ""                  # passed (or was set aside untested), but this effect won the step
+    tied_with: str = ""                     # passed, but this other effect did as well: neither was named
     values: dict = field(repr=False, default_factory=dict)   # the fit's parameters, kept by forget_curves
 
     def seconds(self) -> float:

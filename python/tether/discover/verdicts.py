@@ -99,6 +99,9 @@ def _last_test(d: Discovery, effect: str) -> dict:
         return _verdict("undetermined", f"its fit in step {k} was not judged to the end: {d.stop_reason}")
     if not math.isfinite(t.bic_change):
         return _verdict("undetermined", f"its fit in step {k} did not finish ({t.verdict})" + _earlier(d, effect, k))
+    if t.tied_with:
+        return _verdict("undetermined", f"in step {k} it passes, and {t.tied_with} does as well: the record does not "
+                                        f"tell the two apart ({t.verdict})", t.bic_change)
     if t.outranked_by:
         return _outranked(d, effect, k, t)
     return _verdict("absent", f"refused in step {k} (the model {t.model}: RMS error {t.rms / d.noise.sigma:.2f} x "
