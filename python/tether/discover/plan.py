@@ -70,7 +70,8 @@ PLAN = (
           "each other named law's rival in its place (Law.rival: cubic and bilinear, c(x) and dry friction), where "
           "the model still misses the record", "_law_judged"),
     Stage("wider laws", "the budget is not spent", lambda s: not s.budget_hit, "swap_wider_laws",
-          "each named law's wider law in its place (WIDER_LAWS), where the model still misses the record",
+          "each named law's wider law in its place (WIDER_LAWS), where the model still misses the record; where not "
+          "kept, once more with its first shape group free",
           "_law_judged"),
     Stage("stand-ins", "the budget is not spent and a named effect does not act as itself (acts_as_itself) beside "
           "another named effect that has other laws", lambda s: s.stand_ins_due(), "swap_stand_ins",
