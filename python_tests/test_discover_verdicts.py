@@ -113,6 +113,27 @@ def test_a_slack_record_has_slack_present_and_no_other_effect(slack_run):
     assert lines[5].split()[:2] == ["slack", "present"]
 
 
+def test_two_effects_that_tie_are_undetermined_and_neither_is_named(tmp_path, monkeypatch):
+    """The tie rule (judge.refuse_tied_effects) from the step to OUT.json: with the tie widened to
+    any BIC difference, the slack record's first step has two passing effects (slack and the cubic
+    bent to mimic it) that now tie: neither is named, both are undetermined with the tie as their
+    evidence, and the stop reason says why. (At the real width, 2, they are 10,000 apart.)"""
+    import jsonschema
+    from dataclasses import replace
+    from tether.discover import judge
+
+    monkeypatch.setattr(judge, "CRITERIA", replace(judge.CRITERIA, effect_tie_bic=1e12))
+    tr, _ = _record(tmp_path, "fv_slack", "free_vibration", {"slack"}, 17, noise=1e-5, rate=200.0, duration_s=5.0)
+    doc = D.discovery_document(D.discover(tr, budget=300))
+    assert doc["added_effects"] == []
+    assert "slack and nonlinear_stiffness explain what is left equally well" in doc["stop_reason"]
+    for e, other in (("slack", "nonlinear_stiffness"), ("nonlinear_stiffness", "slack")):
+        v = doc["effects"][e]
+        assert v["verdict"] == "undetermined" and f"{other} does as well" in v["evidence"], v
+    assert not any(c["accepted"] for r in doc["rounds"] for c in r["candidates"])
+    jsonschema.Draft202012Validator(json.loads(SCHEMA.read_text())).validate(doc)
+
+
 def test_a_null_free_vibration_names_nothing_present_and_says_why(tmp_path):
     """A taut free vibration of the linear law: the start model is at the noise. Nothing is
     present; creep cannot show in seconds; slack cannot act where the record stays above the slack
