@@ -645,7 +645,7 @@ int tether_is_stiff(const tether_model *M)
     if (M->p.integrator == INTEGRATOR_BDF) return 1;
     if (M->p.integrator == INTEGRATOR_ADAMS) return 0;
     if (M->p.creep || M->p.rig == RIG_LOAD) return 1;
-    return M->p.rig == RIG_PAYLOAD && fastest_relaxation_rate(M) > TETHER_STIFF_RELAXATION * swing_rate(M);
+    return M->p.rig == RIG_PAYLOAD && fastest_relaxation_rate(M) > TETHER_STIFF_RELAXATION * M->d.swing_rate;
 }
 
 int tether_check_range(tether_model *M, double t, const double *y, char *msg, size_t len)

@@ -140,7 +140,7 @@ void tether_nominals(const tether_model *M, double *nominal);
 #define TETHER_STIFF_RELAXATION 100.0
 
 /* 1 when the problem is stiff (creep time scales, the load rig's relaxation, a dissipative law far
- * faster than the swing: TETHER_STIFF_RELAXATION): use BDF. */
+ * faster than the swing: TETHER_STIFF_RELAXATION): use BDF. Reads what tether_initialize derived. */
 int tether_is_stiff(const tether_model *M);
 
 /* 1 the first time the cubic law is evaluated beyond its rising range (on either side); writes a

@@ -90,10 +90,10 @@ _PARAMS_VISCOUS = ("c0",)
 _PARAMS_DISPLACEMENT = ("c0", "c1", "c2", "c_table_dx", "c_table_1", "c_table_2", "c_table_3", "c_table_4",
                         "c_table_5", "c_table_6", "c_drag", "c_coulomb", "coulomb_v")
 _PARAMS_COULOMB = ("c0", "c_coulomb", "coulomb_v")
-#: each damping law's parameters
 #: the damping laws whose coefficient is c0 + c1 a + c2 a^2 (+ a table, drag, friction) of a magnitude
 #: a: the displacement |x|, or the payload's swing amplitude (physics/damping.c)
 C_OF_MAGNITUDE = ("displacement", "amplitude")
+#: each damping law's parameters
 DAMPING_PARAMETERS = {"viscous": _PARAMS_VISCOUS, "displacement": _PARAMS_DISPLACEMENT, "coulomb": _PARAMS_COULOMB,
                       "amplitude": _PARAMS_DISPLACEMENT}
 _PARAMS_BOUCWEN = ("bw_A", "bw_beta", "bw_gamma", "bw_n", "bw_b2", "bw_b3", "bw_b4", "bw_b5", "bw_b6", "z0")

@@ -88,8 +88,7 @@ class Steps:
         law, wider = WIDER_LAWS.get(e, (None, None))
         if law is None or _law_of(new, e) != law:
             return None
-        rigs = EFFECT[e].law(wider).rigs
-        if rigs is not None and self.records[i].trace.rig not in rigs:
+        if not EFFECT[e].law(wider).tried_on(self.records[i].trace.rig):
             return None
         return _with_law(new, e, wider)
 

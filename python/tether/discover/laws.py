@@ -47,6 +47,10 @@ class Law:
     loop_terms: tuple = ()
     campaigns: bool = True
 
+    def tried_on(self, rig: str) -> bool:
+        """Does a record of this rig try the law (``rigs``: None, every rig)?"""
+        return self.rigs is None or rig in self.rigs
+
 
 @dataclass(frozen=True)
 class Effect:
@@ -83,8 +87,9 @@ class Effect:
 _QUASI_STATIC = ("load", "element")
 _HOURS = "creep acts over minutes to hours under a held load: it cannot show in this record"
 _NEVER_COMPRESSED = ("the tether is never pushed towards compression, where slack would act")
-#: the table of c(.): its knots, the shape group of both laws of a coefficient c0 + c(a)
-_DAMPING_TABLE = ("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5", "c_table_6")
+#: the table of c(.): its knots, the shape group of both laws of a coefficient c0 + c(a) (SHAPE_TERMS),
+#: also tried as the law of a nonlinear-damping candidate
+DAMPING_TABLE = ("c_table_1", "c_table_2", "c_table_3", "c_table_4", "c_table_5", "c_table_6")
 
 #: the registry of effects and their laws (issue 25): adding a law or an effect is one entry here
 #: (plus the C law and its variables); the tables below are its views
@@ -124,12 +129,12 @@ EFFECTS = (
         {}),
     Effect("nonlinear_damping", "damping", "viscous", (
         # c(x) beyond the polynomial: its tabulated part, knots spread over the displacements seen
-        Law("displacement", S.damping_starts, shapes=(_DAMPING_TABLE,), rival="coulomb", wider="amplitude"),
+        Law("displacement", S.damping_starts, shapes=(DAMPING_TABLE,), rival="coulomb", wider="amplitude"),
         # the same c(.) read at the swing's amplitude: a forced record that sweeps through its
         # resonance holds one amplitude over cycles in which |x| runs from 0 to it and back, and
         # c(|x|) cannot follow a damping of the amplitude there (generator B's forced sweep with a
         # saturating c(A): 3.24 x noise with c(x))
-        Law("amplitude", S.damping_starts, rigs=("payload",), shapes=(_DAMPING_TABLE,), added=False),
+        Law("amplitude", S.damping_starts, rigs=("payload",), shapes=(DAMPING_TABLE,), added=False),
         # dry friction beside the viscous part: a damping that falls with amplitude, where c(x) and
         # the drag grow with it
         Law("coulomb", S.coulomb_starts, rival="displacement")),
@@ -327,7 +332,7 @@ def _models_for(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpec]:
 
 def _laws_tried(effect: Effect, trace: Trace) -> list[Law]:
     """The laws of ``effect`` that a step adding it tries on ``trace``'s rig."""
-    return [law for law in effect.laws if law.added and (law.rigs is None or trace.rig in law.rigs)]
+    return [law for law in effect.laws if law.added and law.tried_on(trace.rig)]
 
 
 def tried_in_campaigns(effect: str, spec: ModelSpec) -> bool:
@@ -344,10 +349,6 @@ def _kawabata_split(spec: ModelSpec, effect: str, trace: Trace) -> list[ModelSpe
         return [replace(spec, stiffness=law.name, hysteresis="boucwen")
                 for law in _laws_tried(EFFECT[effect], trace)]
     return []
-
-
-#: the damping table's knots (SHAPE_TERMS), tried as the law of a nonlinear-damping candidate
-DAMPING_TABLE = SHAPE_TERMS[("nonlinear_damping", "displacement")][0]
 
 
 def takes_damping_table(spec: ModelSpec) -> bool:

@@ -149,7 +149,7 @@ def other_rival_laws(trace: Trace, part: Trace, held_out: np.ndarray, cur: Model
                 or cur.rms <= CRITERIA.within_noise * sigma):
             continue
         rule = EFFECT[effect].law(entry.rival)
-        if rule is None or (rule.rigs is not None and trace.rig not in rule.rigs):
+        if rule is None or not rule.tried_on(trace.rig):
             continue
         new = _with_law(cur.spec, effect, entry.rival).for_experiment(trace.experiment)
         own = _law_terms(effect, entry.rival)
@@ -572,9 +572,8 @@ def wider_law(trace: Trace, part: Trace, held_out: np.ndarray, cur: ModelFit, cu
     of Refinements."""
     refinements = []
     for effect, (law, other) in WIDER_LAWS.items():
-        rigs = EFFECT[effect].law(other).rigs
         if (cur.rms <= CRITERIA.within_noise * sigma or effect not in cur.effects or _law_of(cur.spec, effect) != law
-                or (rigs is not None and trace.rig not in rigs)):
+                or not EFFECT[effect].law(other).tried_on(trace.rig)):
             continue
         new = _with_law(cur.spec, effect, other).for_experiment(trace.experiment)
         starts = _wider_law_starts(trace, cur, new, effect, law)

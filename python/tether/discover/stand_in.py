@@ -56,7 +56,7 @@ class StandIn:
                 continue
             own = _law_of(cur.spec, f)
             out += [(f, law.name) for law in EFFECT[f].laws
-                    if law.name != own and (law.rigs is None or self.trace.rig in law.rigs)]
+                    if law.name != own and law.tried_on(self.trace.rig)]
         return out
 
     def stand_ins_due(self) -> bool:

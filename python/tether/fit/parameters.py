@@ -8,7 +8,7 @@ from typing import Iterable
 
 from .. import identify_native as idn
 from .. import nuisance as NZ
-from ..models import IWAN_K, IWAN_K_FIT, ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model
+from ..models import C_OF_MAGNITUDE, IWAN_K, IWAN_K_FIT, ModelSpec, TRACE_PARAMETERS, SWITCHES, parse_model
 from .result import FitError
 
 #: fitted on a log scale (one sign; the engine's steps are relative)
@@ -73,7 +73,8 @@ def law_free_parameters(spec: ModelSpec, elastic: bool = True) -> list[str]:
     else:
         names += ["EA"]
     if payload:
-        names += ["c0"] + {"displacement": ["c1", "c2"], "amplitude": ["c1", "c2"], "coulomb": ["c_coulomb", "coulomb_v"]}.get(spec.damping, [])
+        names += ["c0"] + (["c1", "c2"] if spec.damping in C_OF_MAGNITUDE else
+                           {"coulomb": ["c_coulomb", "coulomb_v"]}.get(spec.damping, []))
     if spec.hysteresis == "boucwen":
         names += ["bw_A", "bw_beta", "bw_gamma"]
     if spec.hysteresis == "iwan":
