@@ -138,3 +138,28 @@ def test_a_runner_up_without_a_law_of_its_own_slack_is_fitted_in_place_too(monke
     assert asked == [WITHOUT.model, swapped.model, swapped.model, slack_aside.model]
     assert s.cur is swapped and s.steps[-1].effect == "slack"
     assert [(r.effect, r.model_after) for r in s.removals] == [("hysteresis", swapped.model)]
+
+
+def test_a_runner_up_fitted_with_its_table_of_c_x_is_swapped_in_by_its_model_not_its_label(monkeypatch):
+    """The damping candidate's second fit, with its table of c(x) free (Search.table_candidate), set
+    aside for hysteresis: its record keeps the model string the registry parses and names the table
+    in OUT.json's label; the swap reads its law from the model (a development draw's free vibration of
+    generator B stopped with ModelError on the label 'linear+iwan+nonlinear_damping (shape: c_table_1
+    ...)' on 2026-12-05)."""
+    table = ("c_table_1", "c_table_2")
+    cubic_with_table = ModelFit(spec=CUBIC.spec, effects=CUBIC.effects, params={}, free=CUBIC.free + list(table),
+                                rms=CUBIC.rms, predicted=CUBIC.predicted, shape=table)
+    s, asked = _search(monkeypatch, _fit(SWAPPED, ("creep", "nonlinear_stiffness"), 1.45, 8), 2.53)
+    monkeypatch.setattr(search, "_damping_table_starts", lambda *a: [None])
+    s.fit = lambda tr, sp, eff, starts, scales, **kw: cubic_with_table
+    poly = _candidate(CUBIC, "nonlinear_stiffness", False)
+    poly.fit = CUBIC
+    aside = search.Search.table_candidate(s, poly)
+    assert parse_model(aside.model, EXPERIMENT).canonical == CUBIC.model
+    assert aside.as_dict(SIGMA)["model"] == f"{CUBIC.model} (shape: c_table_1 c_table_2)"
+    aside.outranked_by = "hysteresis"
+    s, asked = _search(monkeypatch, _fit(SWAPPED, ("creep", "nonlinear_stiffness"), 1.45, 8), 2.53)
+    s.steps[0].candidates[1] = aside
+    s.swap_runner_ups()
+    assert asked == [WITHOUT.model, SWAPPED, SWAPPED, "cubic"]
+    assert s.steps[-1].effect == "nonlinear_stiffness"

@@ -19,6 +19,11 @@ from .laws import _floor, _POSITIVE, free_parameters, HELD_AT_START
 from .scales import _Scales
 
 
+def model_label(model: str, shape: Sequence[str]) -> str:
+    """A model as OUT.json and the progress lines name it: with the shape terms freed beyond its law's."""
+    return f"{model} (shape: {' '.join(shape)})" if shape else model
+
+
 @dataclass
 class ModelFit:
     """One model fitted to one record."""
@@ -56,7 +61,7 @@ class ModelFit:
 
     @property
     def label(self) -> str:
-        return f"{self.model} (shape: {' '.join(self.shape)})" if self.shape else self.model
+        return model_label(self.model, self.shape)
 
     @property
     def n_free(self) -> int:

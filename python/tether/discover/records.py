@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..traces import Trace
-from .fitting import ModelFit
+from .fitting import ModelFit, model_label
 from ..noise import NoiseEstimate
 
 
@@ -32,6 +32,12 @@ class CandidateResult:
     outranked_by: str = ""                  # passed (or was set aside untested), but this effect won the step
     tied_with: str = ""                     # passed, but this other effect did as well: neither was named
     values: dict = field(repr=False, default_factory=dict)   # the fit's parameters, kept by forget_curves
+    shape: tuple = ()                       # shape terms freed beyond the law's (ModelFit.shape)
+
+    @property
+    def label(self) -> str:
+        """The model as OUT.json names it: with the shape terms freed beyond its law's."""
+        return model_label(self.model, self.shape)
 
     def seconds(self) -> float:
         """The time of this candidate's fits (the whole record's and the held-out part's)."""
@@ -46,7 +52,7 @@ class CandidateResult:
         self.fit = self.part_fit = None
 
     def as_dict(self, sigma: float) -> dict:
-        return {"effect": self.effect, "model": self.model, "added_parameters": self.added_parameters,
+        return {"effect": self.effect, "model": self.label, "added_parameters": self.added_parameters,
                 "rmse": self.rms, "rmse_over_noise": self.rms / sigma, "heldout_rmse": self.heldout_rms,
                 "heldout_rmse_over_noise": self.heldout_rms / sigma, "bic_change": self.bic_change,
                 "signature": self.signature, "signature_text": self.signature_text,

@@ -458,7 +458,7 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
         tf = self.fit(self.trace, poly.spec, poly.effects, _damping_table_starts(self.trace, poly, self.sc), self.sc,
                       extra=DAMPING_TABLE, held=_replaced(DAMPING_TABLE))
         dk = tf.n_free - cur.n_free
-        ct = CandidateResult(effect=cr.effect, model=tf.label, added_parameters=dk, rms=tf.rms,
+        ct = CandidateResult(effect=cr.effect, model=tf.model, shape=tf.shape, added_parameters=dk, rms=tf.rms,
                              heldout_rms=float("nan"), bic_change=bic_change(cur, tf, self.n), signature=cr.signature,
                              signature_text=cr.signature_text, fit=tf)
         if tf.ok:
