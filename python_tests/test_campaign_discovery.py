@@ -1118,3 +1118,41 @@ def test_a_shape_kept_before_an_effect_was_named_is_fitted_again_after_it():
     assert fitted == [("pow_F", "pow_n")], fitted
     stage.refine_shapes()                        # nothing named since: not fitted again
     assert fitted == [("pow_F", "pow_n")], fitted
+
+
+def test_two_effects_that_tie_on_the_campaign_are_neither_named_and_undetermined():
+    """The tie rule of one record's step (judge.refuse_tied_effects) on a campaign's step: two effects
+    that pass on the whole campaign and on their held-out parts, whose BIC changes by record lie less
+    than CRITERIA.effect_tie_bic apart, are both refused; the campaign's verdict on each is
+    undetermined, naming the other. Set wider apart, the better one wins as before."""
+    from types import SimpleNamespace
+
+    from tether.discover.campaign import Campaign, CampaignCandidate, CampaignFit
+    from tether.discover.campaign_document import _not_earned
+    from tether.discover.judge import CRITERIA
+
+    def cand(effect, records_bic):
+        f = CampaignFit(spec=parse_model("linear"), effects=(), params={}, free=[], rms=1.0, rms_records=[1.0],
+                        predicted=[])
+        return CampaignCandidate(effect=effect, fit=f, added_parameters=2, bic_change=records_bic,
+                                 records_bic_change=records_bic, verdict="gap 0.96 -> 0.00 sigma", accepted=True)
+
+    camp = Campaign.__new__(Campaign)
+    camp.say, camp.heldout_candidates, camp.records = (lambda s: None), 2, []
+    camp.cur = CampaignFit(spec=parse_model("linear"), effects=(), params={}, free=[], rms=1.38, rms_records=[1.38],
+                           predicted=[])
+    camp.cur_held, camp.heldout_of = 1.5, (lambda f, among=None: 1.0)
+    hyst, stiff = cand("hysteresis", -499.0), cand("nonlinear_stiffness", -499.0 + 0.5 * CRITERIA.effect_tie_bic)
+    assert camp.heldout_tests([hyst, stiff]) is None
+    assert not (hyst.accepted or stiff.accepted)
+    assert (hyst.tied_with, stiff.tied_with) == ("nonlinear_stiffness", "hysteresis")
+    step = SimpleNamespace(candidates=[hyst, stiff])
+    d = SimpleNamespace(steps=[step], stop_reason="")
+    for effect, other in (("hysteresis", "nonlinear_stiffness"), ("nonlinear_stiffness", "hysteresis")):
+        v = _not_earned(d, effect)
+        assert v["verdict"] == "undetermined" and other in v["evidence"] and "neither is named" in v["evidence"]
+    hyst, stiff = cand("hysteresis", -499.0), cand("nonlinear_stiffness", -499.0 + CRITERIA.effect_tie_bic)
+    assert camp.heldout_tests([hyst, stiff]) is hyst and hyst.accepted and not stiff.accepted
+    assert not hyst.tied_with
+    assert _not_earned(SimpleNamespace(steps=[SimpleNamespace(candidates=[hyst, stiff])], stop_reason=""),
+                       "nonlinear_stiffness")["verdict"] == "absent"

@@ -20,7 +20,7 @@ def _over(x, r: Record):
 def _campaign_verdicts(d: CampaignDiscovery) -> dict:
     """Every effect of the vocabulary on the campaign: present (the step that added it and who
     revealed it), absent (some record can reveal it and it did not earn its place) or undetermined
-    (no record of the campaign can reveal it)."""
+    (no record of the campaign can reveal it, or a step could not tell it from another: _not_earned)."""
     out = {}
     added = {s.effect: (k, s) for k, s in enumerate(d.steps, 1) if s.effect and s.effect in d.final.effects}
     removed = {x.effect: x for x in d.removals if x.effect not in d.final.effects}
@@ -42,16 +42,24 @@ def _campaign_verdicts(d: CampaignDiscovery) -> dict:
                       "evidence": "no record of the campaign can reveal it: " + "; ".join(
                           f"{n}: {w}" for n, w in why_not.items())}
         else:
-            tested = [c for s in d.steps for c in s.candidates if c.effect == e]
-            if tested:
-                ev = f"tested on the campaign, not earned: {tested[-1].verdict}"
-            elif d.final.ok and all(x <= CRITERIA.within_noise * r.sigma
-                                    for x, r in zip(d.final.rms_records, d.records)):
-                ev = "every record is reproduced within the noise without it"
-            else:
-                ev = f"not tested: {d.stop_reason}"
-            out[e] = {"verdict": "absent", "evidence": ev}
+            out[e] = _not_earned(d, e)
     return out
+
+
+def _not_earned(d: CampaignDiscovery, e: str) -> dict:
+    """The verdict on an effect some record can reveal that the final model does not hold: absent,
+    or undetermined where the last step that fitted it found another effect tied with it."""
+    tested = [c for s in d.steps for c in s.candidates if c.effect == e]
+    if tested and tested[-1].tied_with:
+        return {"verdict": "undetermined",
+                "evidence": f"the campaign does not tell it from {tested[-1].tied_with}: {tested[-1].verdict}"}
+    if tested:
+        ev = f"tested on the campaign, not earned: {tested[-1].verdict}"
+    elif d.final.ok and all(x <= CRITERIA.within_noise * r.sigma for x, r in zip(d.final.rms_records, d.records)):
+        ev = "every record is reproduced within the noise without it"
+    else:
+        ev = f"not tested: {d.stop_reason}"
+    return {"verdict": "absent", "evidence": ev}
 
 
 def _record_verdicts(d: CampaignDiscovery, i: int, campaign: dict) -> dict:

@@ -92,6 +92,7 @@ class CampaignCandidate:
     verdict: str = ""
     accepted: bool = False
     heldout_rms: float = float("nan")
+    tied_with: str = ""            # passed, but this other effect did as well: neither was named (judge)
 
 
 @dataclass

@@ -14,7 +14,8 @@ from .campaign_records import CampaignCandidate, CampaignFit, CampaignStep, in_n
 from .evidence import regimes
 from .fitting import ModelFit, _side_by_side
 from .judge import (_bic, _gap, _slack_acts, bic_change, closed_loops, friction_verdict, full_data_verdict,
-                    heldout_verdict, leaves_unexplained, loops_verdict, model_speed, slack_heldout_unasked)
+                    heldout_verdict, leaves_unexplained, loops_verdict, model_speed, refuse_tied_effects,
+                    slack_heldout_unasked, tie_stop_reason)
 from .laws import (EFFECT, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, candidates,
                    tried_in_campaigns, unrevealed)
 from .starts import candidate_starts
@@ -130,7 +131,8 @@ class Steps:
             return False
         passing = [c for c in results if c.accepted]
         win = self.heldout_tests(passing)
-        if win is None and passing and not self.budget_hit:
+        tied = [c.effect for c in passing if c.tied_with]
+        if win is None and passing and not tied and not self.budget_hit:
             win, wider_results = self.wider_after_heldout(passing, cands, fitted)
             results += wider_results
         step = CampaignStep(effect=None, model_before=cur.model, model_after=None, rms_before=cur.rms, rms_after=None,
@@ -138,7 +140,7 @@ class Steps:
                             fit_before=cur, refit=refit)
         self.steps.append(step)
         if win is None:
-            self.stop = "no candidate earns its parameters on the campaign"
+            self.stop = tie_stop_reason(tied) if tied else "no candidate earns its parameters on the campaign"
             return False
         self.add(step, win)
         if not self.budget_hit:
@@ -231,10 +233,14 @@ class Steps:
                      " on " + ", ".join(self.records[i].name for i in able)))
             if ok and win is None:
                 win = c
-            c.accepted = ok and c is win
+            c.accepted = ok
         for c in passing[tested:]:
             c.accepted = False
             c.verdict += "; not tested on the held-out parts (a better candidate was)"
+        if refuse_tied_effects(passing, rank=lambda c: c.records_bic_change):
+            return None
+        for c in passing:
+            c.accepted = c is win
         return win
 
     def revealing(self, c: CampaignCandidate) -> list:

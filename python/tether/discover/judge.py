@@ -115,21 +115,23 @@ def rival_tie(win: CandidateResult, others: Sequence[CandidateResult], sigma: fl
     return min(tied, key=lambda c: c.rms, default=None)
 
 
-def refuse_tied_effects(results: Sequence[CandidateResult]) -> bool:
+def refuse_tied_effects(results: Sequence, rank: Callable[[object], float] | None = None) -> bool:
     """Where the best passing candidate of a step and the best passing one of another effect lower
     the BIC by amounts less than CRITERIA.effect_tie_bic apart, the record cannot tell the two
     effects apart: every passing candidate is refused, the two tied ones saying so (tied_with).
-    True where they tie."""
-    passing = sorted((c for c in results if c.accepted), key=lambda c: c.bic_change)
+    ``rank``: the BIC change a step ranks by (a candidate's bic_change; a campaign's, each record's
+    against its own). True where they tie."""
+    rank = rank or (lambda c: c.bic_change)
+    passing = sorted((c for c in results if c.accepted), key=rank)
     if not passing:
         return False
     win = passing[0]
     other = next((c for c in passing[1:] if c.effect != win.effect), None)
-    if other is None or other.bic_change - win.bic_change >= CRITERIA.effect_tie_bic:
+    if other is None or not rank(other) - rank(win) < CRITERIA.effect_tie_bic:
         return False
     for a, b in ((win, other), (other, win)):
         a.tied_with = b.effect
-        a.verdict += (f"; passes, but so does {b.effect} (BIC {a.bic_change:+.0f} against {b.bic_change:+.0f}, less "
+        a.verdict += (f"; passes, but so does {b.effect} (BIC {rank(a):+.0f} against {rank(b):+.0f}, less "
                       f"than {CRITERIA.effect_tie_bic:g} apart): the record does not tell the two apart, and neither "
                       f"is named")
     for c in passing:
@@ -137,6 +139,12 @@ def refuse_tied_effects(results: Sequence[CandidateResult]) -> bool:
         if c is not win and c is not other:
             c.verdict += f"; passes, but {win.effect} and {other.effect} do better and tie"
     return True
+
+
+def tie_stop_reason(tied: Sequence[str]) -> str:
+    """Why a search stops where two effects tie (refuse_tied_effects)."""
+    return (f"{' and '.join(tied)} explain what is left equally well (their BIC changes less than "
+            f"{CRITERIA.effect_tie_bic:g} apart): neither is named")
 
 
 def slack_heldout_unasked(added_parameters: int, slack_in_held_part: bool) -> str | None:

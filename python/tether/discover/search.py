@@ -20,7 +20,7 @@ from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, 
                       SECOND_SEARCH_CAP_SHARE, work_ratio)
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
                     bic_change, full_data_verdict, heldout_verdict, leaves_unexplained, retested_beside_refinements,
-                    refuse_tied_effects, slack_heldout_unasked, table_to_try)
+                    refuse_tied_effects, slack_heldout_unasked, table_to_try, tie_stop_reason)
 from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
 from .plan import PLAN
 from ..noise import estimate_noise
@@ -520,8 +520,7 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
         slack and fits lower is kept as the current model, better fitted."""
         cur, sigma = self.cur, self.sigma
         tied = [c.effect for c in results if c.tied_with]
-        self.stop = (f"{' and '.join(tied)} explain what is left equally well (their BIC changes less than "
-                     f"{CRITERIA.effect_tie_bic:g} apart): neither is named" if tied else "no candidate earns its parameters")
+        self.stop = tie_stop_reason(tied) if tied else "no candidate earns its parameters"
         self.no_winner = True
         refit = _refit_without_slack(self.trace, cur, results, sigma)
         for c in results:
