@@ -12,7 +12,7 @@ import numpy as np
 from ..models import EFFECTS, ModelSpec
 from .campaign_records import CampaignCandidate, CampaignFit, CampaignStep, in_noise_units, ranked_bic_change
 from .evidence import regimes
-from .fitting import ModelFit, _side_by_side
+from .fitting import ModelFit, _side_by_side, fit_cost
 from .judge import (_bic, _gap, _slack_acts, bic_change, closed_loops, friction_verdict, full_data_verdict,
                     heldout_verdict, leaves_unexplained, loops_verdict, model_speed, refuse_tied_effects,
                     slack_heldout_unasked, tie_stop_reason)
@@ -121,10 +121,13 @@ class Steps:
         def fitted(c, own):
             return self.candidate_fit(c[0], c[1], cur.effects + (c[0],), c[2], c[3], own, factor)
 
-        fits = _side_by_side(fitted, cands)
+        def cost(c):
+            return fit_cost(c[1], self.records[c[2]].trace.experiment)
+
+        fits = _side_by_side(fitted, cands, cost=cost)
         cands = self.led_by(cands, fits)
         wider = [] if self.budget_hit else self.wider_candidates(cands, fits)
-        cands, fits = cands + wider, fits + _side_by_side(fitted, wider)
+        cands, fits = cands + wider, fits + _side_by_side(fitted, wider, cost=cost)
         results = self.judge_all(cands, fits)
         if self.budget_hit:
             self.stop = f"the time budget of {self.budget:.0f} s was spent during step {len(self.steps) + 1}"

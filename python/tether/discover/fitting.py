@@ -206,17 +206,31 @@ ENGINE_OPTIONS: dict = {"central_differences": FORWARD}
 PARALLEL_FITS = 2
 
 
-def _side_by_side(fit_one: Callable, items: Sequence, nested: bool = False) -> list:
+def fit_cost(spec, experiment: str) -> int:
+    """What _side_by_side orders fits by: the model's free parameters (each a Jacobian column, and the
+    laws with most of them, the Iwan bank, simulate slowest)."""
+    return len(free_parameters(spec, experiment))
+
+
+def _side_by_side(fit_one: Callable, items: Sequence, nested: bool = False,
+                  cost: Callable | None = None) -> list:
     """[fit_one(item, own_thread) for item in items], up to PARALLEL_FITS at a time, each on its own
     thread (own_thread True); one after the other (own_thread False) when there is one item or
     PARALLEL_FITS is 1. nested: the caller already runs beside others: one after the other, each
-    still on its own thread alone (own_thread True)."""
+    still on its own thread alone (own_thread True). ``cost``: an estimate of each item's work; the
+    costliest start first (a long fit started last would run alone at the end), the results still
+    in the order of ``items``."""
     items = list(items)
     side = 1 if nested else min(PARALLEL_FITS, len(items))
     if side <= 1:
         return [fit_one(x, nested) for x in items]
+    order = sorted(range(len(items)), key=lambda i: -cost(items[i])) if cost else list(range(len(items)))
     with ThreadPoolExecutor(side) as pool:
-        return list(pool.map(lambda x: fit_one(x, True), items))
+        done = list(pool.map(lambda i: fit_one(items[i], True), order))
+    out = [None] * len(items)
+    for i, r in zip(order, done):
+        out[i] = r
+    return out
 
 
 def _fit_direct(trace, spec, names, start, held=None, **options):

@@ -131,7 +131,7 @@ class PairStep:
         partner = Step(model_before=cur.model, rms_before=cur.rms, heldout_before=step.heldout_before,
                        windows=windows, regimes=step.regimes, candidates=[second])
         self.steps.append(partner)
-        partner.effect, partner.rms_after, partner.model_after = second.effect, second.rms, second.model
+        partner.effect, partner.rms_after, partner.model_after = second.effect, second.rms, second.label
         partner.evidence = _evidence(second, windows)
         self.say(f"added {first.effect} and {second.effect} as a pair")
         self.retest_named(first.effect, second.effect)

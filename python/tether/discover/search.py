@@ -16,12 +16,13 @@ from ..models import HYSTERESIS_PARAMETERS, parse_model
 from ..traces import Trace
 from .document import _evidence, _slack_seen_by, ordinal
 from .evidence import disagreement, regime_table, regimes, signatures
-from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, fit_model, ModelFit, predict,
-                      SECOND_SEARCH_CAP_SHARE, work_ratio)
+from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, fit_cost, fit_model, ModelFit,
+                      predict, SECOND_SEARCH_CAP_SHARE, work_ratio)
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
                     bic_change, full_data_verdict, heldout_verdict, leaves_unexplained, retested_beside_refinements,
                     refuse_tied_effects, slack_heldout_unasked, table_to_try, tie_stop_reason)
-from .laws import _law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD, RIVAL_LAWS
+from .laws import (_law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD,
+                   RIVAL_LAWS)
 from .plan import PLAN
 from ..noise import estimate_noise
 from .nuisance import data_start, nuisance_parameters, nuisance_start
@@ -433,7 +434,7 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
         candidate_fits = _side_by_side(
             lambda job, alone, _effects=cur.effects, _rms=cur.rms: self.fit(
                 self.trace, job[1], _effects + (job[0],), job[2], self.sc, own_thread=alone, baseline_rms=_rms,
-                cap_factor=factor), jobs)
+                cap_factor=factor), jobs, cost=lambda job: fit_cost(job[1], self.trace.experiment))
         results = []
         for (eff, new, _), fm in zip(jobs, candidate_fits):
             dk = fm.n_free - cur.n_free
@@ -541,7 +542,7 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
             win.signature_text = _slack_seen_by(self.trace, win)
         step.evidence = _evidence(win, windows)
         step.rms_after = win.rms
-        step.model_after = win.model
+        step.model_after = win.label
         self.say(f"added {win.effect}: RMS error {self.cur.rms / self.sigma:.2f} -> {win.rms / self.sigma:.2f} x noise")
         self.cur, self.cur_held = win.fit, win.heldout_rms
         if self.cur.shape:                           # a law with its shape terms (the table of c(x))

@@ -104,7 +104,7 @@ def _last_test(d: Discovery, effect: str) -> dict:
                                         f"tell the two apart ({t.verdict})", t.bic_change)
     if t.outranked_by:
         return _outranked(d, effect, k, t)
-    return _verdict("absent", f"refused in step {k} (the model {t.model}: RMS error {t.rms / d.noise.sigma:.2f} x "
+    return _verdict("absent", f"refused in step {k} (the model {t.label}: RMS error {t.rms / d.noise.sigma:.2f} x "
                               f"noise, from {st.rms_before / d.noise.sigma:.2f}): {t.verdict}" + _at_the_noise(d),
                     t.bic_change)
 
