@@ -99,3 +99,25 @@ def test_each_effect_whose_law_changed_is_tested_beside_the_other_changed_law():
     assert [r.effect for r in s.removals] == ["nonlinear_stiffness"]
     assert asked == ["cubic+slack", "cubic+iwan", "linear+iwan+slack", "linear+iwan"]
     assert s.cur.model == "linear+iwan+slack"
+
+
+def test_an_effect_the_model_reproduces_the_record_without_is_removed():
+    """A re-test keeps nothing the search would not have added (judge.retest_verdict): the development
+    draw's b13 (generator B, seed 11: dry friction and slack, no stiffening) named a bilinear toe in
+    step 1 and kept it beside slack in step 3, the model without it at 1.06 x noise and with it at
+    1.01 x (gap 0.34 -> 0.16 sigma, BIC -274: the whole record's rule alone keeps it). Without it
+    the model is within CRITERIA.within_noise: removed. At 1.2 x without it, the same figures of
+    gain keep it."""
+    from tether.discover.judge import CRITERIA, full_data_verdict, retest_verdict
+
+    assert full_data_verdict(SIGMA, 1.056 * SIGMA, 1.013 * SIGMA, -274.0, 3)[0]
+    keep, why = retest_verdict(SIGMA, 1.056 * SIGMA, 1.013 * SIGMA, -274.0, 3)
+    assert not keep and "within the noise (RMS error 1.06 x noise)" in why
+    assert retest_verdict(SIGMA, 1.2 * SIGMA, 1.0 * SIGMA, -300.0, 3)[0]
+    assert not retest_verdict(SIGMA, CRITERIA.within_noise * SIGMA, 1.0 * SIGMA, -300.0, 3)[0]
+    cur = _fit("linear+bilinear+coulomb+slack", ("nonlinear_stiffness", "nonlinear_damping", "slack"), 1.013, 9)
+    outcomes = {"linear+coulomb+slack": _fit("linear+coulomb+slack", ("nonlinear_damping", "slack"), 1.056, 6)}
+    s, asked = _search(cur, [], outcomes)
+    assert s.retest(["nonlinear_stiffness"], "slack")
+    assert asked == ["linear+coulomb+slack"] and s.cur is outcomes["linear+coulomb+slack"]
+    assert [r.effect for r in s.removals] == ["nonlinear_stiffness"] and "within the noise" in s.removals[0].reason

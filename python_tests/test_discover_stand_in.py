@@ -60,8 +60,8 @@ def _search(monkeypatch, outcomes: dict, impostors=("hysteresis",)) -> tuple[sea
 
 def test_an_effect_standing_in_for_another_law_is_removed_with_that_law_in_place(monkeypatch):
     """Hysteresis does not act as itself; without it and with the exponential law in the cubic's
-    place the error is 0.98 x noise with 5 parameters fewer: no gap above the noise is left for it
-    to shrink (the re-test's rule), so it is removed, the model adopted, and creep tested again
+    place the error is 0.98 x noise with 5 parameters fewer: the model reproduces the record within
+    the noise without it (the re-test's rule, judge.retest_verdict), so it is removed, the model adopted, and creep tested again
     beside the exponential law (without creep 30 x: creep stays)."""
     swapped = _fit(EXPONENTIAL, ("nonlinear_stiffness", "creep"), 0.98, 7)
     outcomes = {EXPONENTIAL: swapped, BILINEAR: _fit(BILINEAR, ("nonlinear_stiffness", "creep"), 3.0, 9),
@@ -76,7 +76,7 @@ def test_an_effect_standing_in_for_another_law_is_removed_with_that_law_in_place
     assert s.cur is swapped and s.cur_held == 1.0 * SIGMA
     (gone,) = s.removals
     assert (gone.effect, gone.model_before, gone.model_after) == ("hysteresis", NAMED.model, swapped.model)
-    assert "nothing to gain" in gone.reason and "exponential law" in gone.reason
+    assert "reproduces the record within the noise" in gone.reason and "exponential law" in gone.reason
     (creep,) = s.steps[-1].retests
     assert (creep.effect, creep.kept) == ("creep", True)
 

@@ -50,7 +50,8 @@ from ..traces import Trace
 from .document import ordinal
 from .fitting import (CAP_SIMULATIONS, DEFAULT_BUDGET, ENGINE_OPTIONS, ModelFit, _clean_start, fit_model, predict,
                       work_ratio)
-from .judge import CRITERIA, _gap, _law_judged, bic_change, leaves_unexplained, retested_beside_refinements
+from .judge import (CRITERIA, _gap, _law_judged, bic_change, leaves_unexplained, retested_beside_refinements,
+                    within_noise_without)
 from .laws import (HELD_AT_START, RIVAL_LAWS, WIDER_LAWS, _law_of, _models_for, _with_law, _without, candidates,
                    free_parameters)
 from .nuisance import baked, nuisance_parameters, nuisance_start
@@ -748,7 +749,11 @@ class Campaign(Steps, Contradictions, Reseeding, Shapes):
             if not rf.ok or self.budget_hit:
                 continue
             bic = bic_change(rf, cur, self.n)
-            keep, why = self.effect_verdict(e, rf, cur, bic, cur.n_free - rf.n_free)
+            if self.within_noise(rf):          # judge.retest_verdict's rule, on every record
+                w = self.worst_record(rf)
+                keep, why = False, within_noise_without(rf.rms_records[w] / self.records[w].sigma)
+            else:
+                keep, why = self.effect_verdict(e, rf, cur, bic, cur.n_free - rf.n_free)
             step.retests.append(Retest(e, bic, keep, why, None if beside == step.effect else beside))
             self.say(f"  re-test of {e} beside {beside}: without it {rf.rms:.2f} x noise ({why}): "
                      + ("kept" if keep else "removed"))

@@ -325,6 +325,22 @@ def full_data_verdict(sigma: float, rms_before: float, rms_after: float, bic_cha
     return True, f"gap {g0 / sigma:.2f} -> {g1 / sigma:.2f} sigma, BIC {bic_change:+.0f}"
 
 
+def retest_verdict(sigma: float, rms_without: float, rms_with: float, bic_change: float,
+                   added_parameters: int) -> tuple[bool, str]:
+    """A named effect tested again, the model refitted without it: kept where it earns its place by the
+    whole record's rule (full_data_verdict), but not where the model without it reproduces the record
+    within the noise (CRITERIA.within_noise): the search adds nothing to such a model, and a re-test
+    keeps nothing the search would not have added."""
+    if rms_without <= CRITERIA.within_noise * sigma:
+        return False, within_noise_without(rms_without / sigma)
+    return full_data_verdict(sigma, rms_without, rms_with, bic_change, added_parameters)
+
+
+def within_noise_without(rms_over_noise: float) -> str:
+    """Why a re-test removes an effect the model reproduces the record without (retest_verdict)."""
+    return f"without it the model reproduces the record within the noise (RMS error {rms_over_noise:.2f} x noise)"
+
+
 def pair_verdict(sigma: float, cur: ModelFit, fm: ModelFit, without: Sequence, n: int) -> tuple[bool, str]:
     """Two effects added together (the fit ``fm``): the pair earns its place against the current
     model ``cur`` by the whole record's rule (full_data_verdict, with the parameters of both), and

@@ -32,12 +32,12 @@ PLAN = (
     Stage("effects", _ALWAYS, lambda s: True, "search_effects",
           "each effect the record can reveal and the model lacks, with each of its laws, step by step; after a "
           "step, each effect named before the winner, removed",
-          "full_data_verdict, heldout_verdict (and acts_as_itself); a removal: full_data_verdict"),
+          "full_data_verdict, heldout_verdict (and acts_as_itself); a removal: retest_verdict"),
     Stage("runner-ups", "the model misses the record (above CRITERIA.within_noise), the budget is not spent, and "
           "a named effect's step set a candidate of another effect aside for it", lambda s: s.runner_ups_due(),
           "swap_runner_ups", "each named effect's runner-up (the candidate its step set aside with the lowest BIC) "
           "in its place beside the rest of the model; where kept, each other named effect removed",
-          "_law_judged (and acts_as_itself); a removal: full_data_verdict"),
+          "_law_judged (and acts_as_itself); a removal: retest_verdict"),
     Stage("shapes", "the budget is not spent", lambda s: not s.budget_hit, "refine_shapes_first",
           "the shape groups of the named laws (SHAPE_TERMS), one at a time from the final model",
           "_shape_judged"),
@@ -76,10 +76,10 @@ PLAN = (
     Stage("stand-ins", "the budget is not spent and a named effect does not act as itself (acts_as_itself) beside "
           "another named effect that has other laws", lambda s: s.stand_ins_due(), "swap_stand_ins",
           "that effect removed with each other law of each other named effect in place (every law the rig can hold), "
-          "until one is adopted; then each other named effect removed", "full_data_verdict (as a re-test)"),
+          "until one is adopted; then each other named effect removed", "retest_verdict (as a re-test)"),
     Stage("re-test", "a last stage changed a law after the last step's re-tests, and the budget is not spent",
           lambda s: not s.budget_hit and bool(s.laws_changed()), "retest_after_refinements",
-          "each other named effect removed, one removal at a time", "full_data_verdict"),
+          "each other named effect removed, one removal at a time", "retest_verdict"),
     Stage("rival branch", "a step found two laws of its effect tied (CRITERIA.rival_tie), the model misses the "
           "record by CRITERIA.unexplained_gap or more, and the budget left holds the time taken since that step",
           lambda s: s.branch_due(),

@@ -20,7 +20,8 @@ from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, 
                       predict, SECOND_SEARCH_CAP_SHARE, work_ratio)
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
                     bic_change, full_data_verdict, heldout_verdict, leaves_unexplained, retested_beside_refinements,
-                    refuse_tied_effects, slack_heldout_unasked, table_to_try, tie_stop_reason)
+                    refuse_tied_effects, retest_verdict, slack_heldout_unasked, table_to_try,
+                    tie_stop_reason)
 from .laws import (_law_of, _models_for, _replaced, _without, candidates, DAMPING_TABLE, EFFECT, LAW_FIELD,
                    RIVAL_LAWS)
 from .plan import PLAN
@@ -561,8 +562,8 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
 
     def retest(self, effects: Sequence[str], beside: str, record_beside: str | None = None) -> bool:
         """Each of ``effects`` tested again beside the current model (refitted without it, judged by
-        the whole record's rule, full_data_verdict); the first that no longer earns its parameters is
-        removed. True where one was."""
+        judge.retest_verdict); the first that no longer earns its parameters is removed. True where
+        one was."""
         cur, sigma = self.cur, self.sigma
         for e in effects:
             red = _without(cur.spec, e).for_experiment(self.trace.experiment)
@@ -571,7 +572,7 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
             if not rf.ok:
                 continue
             bic = bic_change(rf, cur, self.n)
-            keep, why = full_data_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
+            keep, why = retest_verdict(sigma, rf.rms, cur.rms, bic, cur.n_free - rf.n_free)
             self.steps[-1].retests.append(Retest(e, bic, keep, why, record_beside))
             if keep:
                 continue

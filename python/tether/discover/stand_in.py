@@ -7,7 +7,7 @@ cubic the search named beside it cannot follow the exponential law without it. S
 not act as itself (judge.acts_as_itself: its loops closed, the record is fitted as well). Where a
 named effect does not, it is removed with each other law of each other named effect in place (the
 laws the record's rig can hold, laws.EFFECTS); where it no longer earns its place beside one of them
-by the re-test's rule (full_data_verdict), that model is adopted, recorded as a removal, and the
+by the re-test's rule (retest_verdict), that model is adopted, recorded as a removal, and the
 other named effects are tested again beside it. A mixin of search.Search (docs/discovery.md, "The
 stand-ins")."""
 
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from .judge import acts_as_itself, bic_change, full_data_verdict
+from .judge import acts_as_itself, bic_change, retest_verdict
 from .laws import EFFECT, _law_of, _with_law, _without
 from .records import Removal
 from .rival import _rival_starts
@@ -77,7 +77,7 @@ class StandIn:
     def stand_in(self, effect: str, other: str, law: str) -> bool:
         """The current model without ``effect`` and with ``law`` as ``other``'s law, fitted from the
         current model's values and the law's starts; adopted where ``effect`` does not earn its
-        place beside it (full_data_verdict, as a re-test asks). True where it was."""
+        place beside it (retest_verdict, as a re-test asks). True where it was."""
         cur, sigma, exp = self.cur, self.sigma, self.trace.experiment
         reduced = _without(cur.spec, effect).for_experiment(exp)
         new = _with_law(reduced, other, law).for_experiment(exp)
@@ -89,7 +89,7 @@ class StandIn:
         if not fm.ok:
             self.say(f"  {effect} standing in for {other}'s {law} law: the fit failed: {fm.message}")
             return False
-        keep, why = full_data_verdict(sigma, fm.rms, cur.rms, bic_change(fm, cur, self.n), cur.n_free - fm.n_free)
+        keep, why = retest_verdict(sigma, fm.rms, cur.rms, bic_change(fm, cur, self.n), cur.n_free - fm.n_free)
         self.say(f"  {effect} standing in for {other}'s {law} law: without it, with that law, the RMS error is "
                  f"{fm.rms / sigma:.2f} x noise: {'it stays' if keep else 'removed'} ({why})")
         if keep:
