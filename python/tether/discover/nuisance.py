@@ -157,12 +157,28 @@ def data_start(trace: Trace, spec: ModelSpec, nz: dict) -> dict | None:
     return {**{k: float(v) for k, v in est.items() if not k.startswith("_")}, **{k: float(v) for k, v in nz.items()}}
 
 
+#: a forced record's equation error reads its mass (and the law's start) only where the linear
+#: equation explains this share of the variance of what it fits: on nonlinear, slack or coarsely
+#: sampled records the mass column takes up what the law lacks (docs/nuisance-discovery.md, 2026-12-05)
+MASS_ESTIMATE_MIN_R2 = 0.9
+
+
+def _explained(A: np.ndarray, coef: np.ndarray, b: np.ndarray) -> float:
+    """The share of the variance of ``b`` that ``A coef`` explains (R^2)."""
+    r = b - A @ coef
+    total = float(np.sum((b - b.mean()) ** 2))
+    return 1.0 - float(r @ r) / total if total > 0 else 0.0
+
+
 def nuisance_start(trace: Trace, names: Sequence[str]) -> dict:
     """Data-based starts of the nuisance parameters for the start model: the equation error of
     the payload rig, m a + c v + k x = f + k o (o the offset of the measured column), solved by
     least squares on the record's kinematics with an intercept (and, where m is freed on a forced
     record, the acceleration's column: m itself), so neither an offset nor a mass 10-30 % off the
-    trace's leans on the stiffness and damping the start model begins from. The load rig: the
+    trace's leans on the stiffness and damping the start model begins from. Where the mass is freed
+    and that equation explains less than MASS_ESTIMATE_MIN_R2 of the force, what the record states
+    (NZ.stated_values): a search then also reads each candidate's data-based start off the record as
+    stated, not only as the current model's nuisance values bent to its law. The load rig: the
     elongation at the smallest loads, extrapolated along them to zero load."""
     from ..fit.equation_error import scaled_lstsq
     from ..fit.kinematics import dominant_frequency, kinematics
@@ -192,6 +208,9 @@ def nuisance_start(trace: Trace, names: Sequence[str]) -> dict:
     A = np.column_stack(cols)
     coef = scaled_lstsq(A, rhs)
     k = float(coef[-2])
+    if free_m and _explained(A, coef, rhs) < MASS_ESTIMATE_MIN_R2:
+        stated = NZ.stated_values(trace)
+        return {n: stated[n] for n in names if n in stated and n in ("offset_measured", "m", "x0", "v0")}
     if not k > 0:
         return out
     out["offset_measured"] = float(-coef[-1] / k)

@@ -338,13 +338,15 @@ def creep_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | Non
 
 
 def slack_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
-    """The base's values; where its stiffness is linear, also with EA from the record."""
+    """The base's values; where its stiffness is linear, also with EA from the record; and the
+    data-based estimate of the whole model (a law and nuisance values fitted to a record that goes
+    slack, by a model that cannot, are bent to stand in for it)."""
     starts: list[dict | None] = [dict(base.params)]
     if base.spec.stiffness == "linear":
         w = dict(base.params)
         w.update(EA=sc.ea)
         starts.append(w)
-    return starts
+    return starts + [None]
 
 
 def _damping_table_starts(trace: Trace, fm: "ModelFit", sc: _Scales) -> list:
