@@ -5,6 +5,8 @@
 * ``repo_root``, ``datasets_dir`` (the bundled third-party data sets, datasets/ in the repository).
 * ``write_trace``: writes NAME.csv + NAME.json into tmp_path and returns the stem path.
 * ``run_cli``: runs ``tether`` in-process; returns (status, stdout, stderr).
+* ``slack_forced_b26``: generator B's development-draw record b26 (seed 11: a forced linear tether
+  that goes slack 14 times), written once per session; (its spec, the read Trace).
 """
 
 from __future__ import annotations
@@ -98,3 +100,18 @@ def run_cli(capsys):
         return status, out, err
 
     return run
+
+
+@pytest.fixture(scope="session")
+def slack_forced_b26(tmp_path_factory):
+    import sys
+
+    sys.path.insert(0, str(REPO_ROOT))
+    from bench.generator_b import generate, suite, write_trace as write_b
+    from tether.traces import read_trace
+
+    spec = suite(48, 11)[26]
+    assert spec["effects"] == ["slack"] and spec["experiment"] == "forced"
+    stem = write_b(tmp_path_factory.mktemp("genb_11"), spec["name"], *generate(spec))
+    return spec, read_trace(f"{stem}.csv")
+

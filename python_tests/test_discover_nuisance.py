@@ -189,25 +189,18 @@ def test_the_data_based_start_reads_the_offset_and_the_mass(tmp_path, experiment
     assert st["x0"] == pytest.approx(nz["x0"], abs=3e-4)
 
 
-def test_a_forced_record_the_linear_equation_does_not_describe_gives_no_mass_start(tmp_path):
+def test_a_forced_record_the_linear_equation_does_not_describe_is_read_as_it_states(slack_forced_b26):
     """The second generator's forced record of a tether that goes slack 14 times (development draw
     b26, seed 11: its stated mass the truth): the equation error's acceleration column took up what
     the linear law lacks, 0.50 times the mass, clamped to the band's edge, and the law's stiffness at
     half its own, a start from which the slack candidate's fit stopped at 40 x noise. That equation
     explains 59 % of the force's variance there (at least nuisance.MASS_ESTIMATE_MIN_R2 where the
     start is read: the records of the test above): the record's own reading is what it states."""
-    import sys
-    from pathlib import Path
-
     import numpy as np
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from bench.generator_b import generate, suite, write_trace
     from tether.fit.kinematics import dominant_frequency, kinematics
 
-    spec = suite(48, 11)[26]
-    assert spec["effects"] == ["slack"] and spec["experiment"] == "forced"
-    t = read_trace(f"{write_trace(tmp_path, spec['name'], *generate(spec))}.csv")
+    _, t = slack_forced_b26
     K = kinematics(t, dominant_frequency(np.asarray(t.time), np.asarray(t.measured)))
     A = np.column_stack([K.a[K.use], K.v[K.use], K.x[K.use], np.ones(int(K.use.sum()))])
     coef = np.linalg.lstsq(A, K.f[K.use], rcond=None)[0]

@@ -9,23 +9,14 @@ states where the linear equation does not describe it (discover.nuisance.nuisanc
 slack's starts include the data-based estimate of the whole model (starts.slack_starts)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from bench.generator_b import generate, suite, write_trace  # noqa: E402
-from tether.discover.nuisance import nuisance_parameters  # noqa: E402
-from tether.discover.search import Search  # noqa: E402
-from tether.discover.starts import candidate_starts  # noqa: E402
-from tether.models import parse_model  # noqa: E402
-from tether.traces import read_trace  # noqa: E402
+from tether.discover.nuisance import nuisance_parameters
+from tether.discover.search import Search
+from tether.discover.starts import candidate_starts
+from tether.models import parse_model
 
 
-def test_slack_beside_a_bent_linear_fit_reaches_the_tether(tmp_path):
-    spec = suite(48, 11)[26]
-    assert spec["effects"] == ["slack"] and spec["experiment"] == "forced"
-    tr = read_trace(f"{write_trace(tmp_path, spec['name'], *generate(spec))}.csv")
+def test_slack_beside_a_bent_linear_fit_reaches_the_tether(slack_forced_b26):
+    spec, tr = slack_forced_b26
     s = Search(tr, "linear", None, 4, 2, None, nuisance_parameters(tr))
     assert s.cur.rms > 20 * s.sigma and abs(s.cur.params["x0"]) > 1e-3
     slack = parse_model("linear+slack", "forced")
