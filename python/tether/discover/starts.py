@@ -269,11 +269,23 @@ def bilinear_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | 
     return [None, w]
 
 
+def _viscous_reference(base: ModelFit, sc: _Scales) -> float:
+    """The base's c0, at least the fit's floor (fit.parameters.c0_floor): where a hysteresis law has
+    taken over the damping, c0 falls towards zero (to 4e-238 N s/m on a free vibration of Dahl
+    friction beside an amplitude damping), and starts scaled by it would give the damping nothing
+    the fit can grow from (its terms are scaled by their starts)."""
+    from ..fit.parameters import c0_floor
+    c0 = float(base.params.get("c0", 1.0))
+    if sc.omega > 0:
+        c0 = max(c0, c0_floor(sc.k, sc.k / sc.omega ** 2))
+    return c0
+
+
 def damping_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
     """c(x) growing with |x| or x^2, or a drag c_drag |v| growing with the speed amp * omega: four
-    starts from the base's c0, one with each leading, one with all small."""
+    starts from the base's c0 (_viscous_reference), one with each leading, one with all small."""
     warm = base.params
-    c0 = warm.get("c0", 1.0)
+    c0 = _viscous_reference(base, sc)
     speed = sc.amp * (sc.omega if sc.omega > 0 else 1.0)
     starts: list[dict | None] = []
     for r1, r2, rd in ((1e-2, 1e-3, 1e-2), (1.0, 1e-3, 1e-2), (1e-3, 1.0, 1e-2), (1e-3, 1e-3, 1.0)):
@@ -290,10 +302,11 @@ COULOMB_SHARES = (0.1, 0.5)
 
 
 def coulomb_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | None) -> list[dict | None]:
-    """Viscous plus dry friction from the base's c0, a share (COULOMB_SHARES) of it handed to the
-    friction (fit.payload_start.coulomb_start), at the record's amplitude and sample interval."""
+    """Viscous plus dry friction from the base's c0 (_viscous_reference), a share (COULOMB_SHARES)
+    of it handed to the friction (fit.payload_start.coulomb_start), at the record's amplitude and
+    sample interval."""
     from ..fit.payload_start import coulomb_start
-    c0 = base.params.get("c0", 1.0)
+    c0 = _viscous_reference(base, sc)
     t = trace.time if trace is not None else ()
     omega = sc.omega if sc.omega > 0 else 1.0
     return [{**base.params, **coulomb_start(c0, omega, sc.amp, t, share)} for share in COULOMB_SHARES]

@@ -163,12 +163,21 @@ def bounds_and_start(name: str, start: float, limits: dict, scales: dict) -> tup
     return lo, hi, s, "linear"
 
 
+#: the smallest viscous damping a start gives the payload, as a damping ratio
+C0_FLOOR_RATIO = 0.002
+
+
+def c0_floor(k: float, m: float) -> float:
+    """The viscous damping of the damping ratio C0_FLOOR_RATIO, for stiffness k [N/m] and mass m [kg]."""
+    return 2 * C0_FLOOR_RATIO * math.sqrt(k * m)
+
+
 def _positive_floor(name: str, scales: dict) -> float:
     """A small positive start for a log-scaled parameter the estimate put at or below zero."""
     k = scales.get("_k_lin")
     m = scales.get("_m")
     if name == "c0" and k and m:
-        return 2 * 0.002 * math.sqrt(k * m)       # damping ratio 0.2 %
+        return c0_floor(k, m)
     if name == "bw_A" and k:
         return 0.05 * k
     d = idn.parameter_start(name)
