@@ -271,9 +271,8 @@ def bilinear_starts(base: ModelFit, new: ModelSpec, sc: _Scales, trace: Trace | 
 
 def _viscous_reference(base: ModelFit, sc: _Scales) -> float:
     """The base's c0, at least the fit's floor (fit.parameters.c0_floor): where a hysteresis law has
-    taken over the damping, c0 falls towards zero (to 4e-238 N s/m on a free vibration of Dahl
-    friction beside an amplitude damping), and starts scaled by it would give the damping nothing
-    the fit can grow from (its terms are scaled by their starts)."""
+    taken over the damping, c0 falls towards zero, and starts scaled by it would give the damping
+    nothing the fit can grow from (its terms are scaled by their starts; docs/discovery.md)."""
     from ..fit.parameters import c0_floor
     c0 = float(base.params.get("c0", 1.0))
     if sc.omega > 0:
