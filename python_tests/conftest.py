@@ -114,4 +114,3 @@ def slack_forced_b26(tmp_path_factory):
     assert spec["effects"] == ["slack"] and spec["experiment"] == "forced"
     stem = write_b(tmp_path_factory.mktemp("genb_11"), spec["name"], *generate(spec))
     return spec, read_trace(f"{stem}.csv")
-
