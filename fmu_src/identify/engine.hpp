@@ -109,7 +109,7 @@ struct Prepared {
     // the samples where the input's pieces join (InputJoin) instead of restarting the integrator at
     // every sample as an importer's fmi2SetReal does (a piece that jumps still restarts it); not
     // periodic: the integrator follows the pieces by time and its steps pass the samples, which are
-    // read off its interpolant. Not with the Kawabata and Iwan laws (simulate.cpp says why)
+    // read off its interpolant. Not with the Kawabata law (simulate.cpp says why)
     bool continuous_input = false;
     InputJoin join;
     // what a simulation reads of the experiment (its grid, input, periodic settings, outputs), hashed

@@ -177,8 +177,8 @@ typedef struct {
                                 record that is not periodic gives the integrator its input piece by
                                 piece as time goes, lets its steps pass the samples and reads them
                                 off its interpolant. Within the integration tolerance of the FMU's
-                                trajectory. Not with the Kawabata and Iwan laws (their reversal
-                                memory takes the switches the FMU makes at every sample). 0 =
+                                trajectory. Not with the Kawabata law (its reversal memory takes
+                                the switches the FMU makes at every sample). 0 =
                                 restart the integrator at every sample, as the FMU does when an
                                 importer sets the input (kt_simulate's exact step sequence) */
     int broyden_updates;     /* speed-up of the forward-difference iterations (not of central ones,

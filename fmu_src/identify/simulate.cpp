@@ -370,11 +370,11 @@ static bool simulate_model(const Prepared &p, const tether_model &M0, const Meas
     const int n = e.n;
     const int P = e.periodic_samples;
     const bool has_input = e.input_kind != KT_INPUT_NONE;
-    // Prepared::continuous_input, but not with the Kawabata and Iwan laws: their reversal memory
-    // takes the switches the FMU makes at the samples, where a load that returns to an earlier
-    // turning point decides between rejoining its branch and reversing by a hair
-    const bool carry_on = has_input && p.continuous_input && M.p.hysteresis != HYSTERESIS_KAWABATA &&
-                          M.p.hysteresis != HYSTERESIS_IWAN;
+    // Prepared::continuous_input, but not with the Kawabata law: its reversal memory takes the
+    // switches the FMU makes at the samples, where a load that returns to an earlier turning point
+    // decides between rejoining its branch and reversing by a hair. The Iwan bank's force is a sum of
+    // play operators, continuous in the strain's path: a reversal a hair away moves it by a hair
+    const bool carry_on = has_input && p.continuous_input && M.p.hysteresis != HYSTERESIS_KAWABATA;
     const std::size_t n_out = p.outputs.size();
     char msg[1024];
     double y[TETHER_NUMBER_OF_STATES];
