@@ -586,6 +586,22 @@ def _cache_record(seed: int):
     return e, _free(TRUTH_SIMPLE, {"a1": 1.1, "c0": 1.3})
 
 
+def test_a_fit_whose_earlier_horizon_stage_stopped_at_the_limit_reports_the_limit():
+    """Horizon stages: the first quarter of a free vibration, then half, then all of it. With four
+    iterations a stage, the first two stop at the limit and the last converges from where they left
+    it, elsewhere than the fit run longer: the fit says it stopped at the limit (discovery reads the
+    status to tell a quick fit that has shown its optimum from one still descending)."""
+    e, free = _cache_record(seed=12)
+    cut = idn.fit([e], free, n_threads=1, max_iterations=4, horizon_stages=3, output_stride=20)
+    full = idn.fit([e], free, n_threads=1, max_iterations=100, horizon_stages=3, output_stride=20)
+    assert full.status == 0, full.message
+    assert cut.status == 1 and "earlier stage" in cut.message, cut.message
+    assert not np.array_equal(cut.values, full.values)
+    # one stage only: no earlier stage to have stopped
+    one = idn.fit([e], free, n_threads=1, max_iterations=4, horizon_stages=1)
+    assert "earlier stage" not in one.message, one.message
+
+
 def test_a_fit_along_a_path_already_walked_reads_its_simulations_back_and_ends_at_the_same_bits():
     """A quick fit, then the full fit from the same start (discovery's fits from several starts):
     the full fit walks the quick one's path again and reads those simulations back, and it ends at

@@ -346,6 +346,7 @@ struct LMResult {
     int status = -1;
     std::string message;
     bool start_failed = false; // the start itself did not simulate (not a deadline)
+    bool stage_cut = false;    // a horizon stage before the last stopped at the iteration limit
     // the finite-difference Jacobian at th, when the fit's last one was computed there (central or
     // forward as `central` says); empty otherwise. The statistics reuse it: the same bits as a new one
     MatrixXd J;
@@ -626,7 +627,9 @@ LMResult fit_through_stages(const std::vector<Problem> &stages, const VectorXd &
     const int n_stages = (int)stages.size();
     VectorXd th = th_start;
     LMResult R;
+    bool stage_cut = false;
     for (int sg = 0; sg < n_stages; ++sg) {
+        if (sg > 0 && R.status == 1) stage_cut = true;
         // stages before the last only bring the start near the optimum: a looser stop
         kt_fit_options os = o;
         if (sg < n_stages - 1) os.stat_tol = std::max(o.stat_tol, 0.1);
@@ -636,6 +639,19 @@ LMResult fit_through_stages(const std::vector<Problem> &stages, const VectorXd &
             R = levenberg_marquardt(stages[(std::size_t)sg], th_start, os, C, start_no, sg, n_stages);
         if (R.status < 0) break;
         th = R.th;
+    }
+    R.stage_cut = stage_cut;
+    return R;
+}
+
+// A fit converges only where every stage did: one whose earlier horizon stage stopped at the
+// iteration limit began its last stage elsewhere than a longer run would, and reports the limit
+// (status 1) though its last stage converged.
+LMResult reported(LMResult R)
+{
+    if (R.stage_cut && R.status == 0) {
+        R.status = 1;
+        R.message = "maximum number of iterations reached in an earlier stage (" + R.message + " in the last)";
     }
     return R;
 }
@@ -803,9 +819,12 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             LMResult R = fit_through_stages(stages, th, o, C, st);
             if (R.status == -2) { err = "kt_fit: " + R.message; return -1; }
             if (R.status >= 0 && o.central_differences == KT_POLISH_CENTRAL) {
+                const bool cut = R.stage_cut;
                 R = polish_with_central_differences(stages.back(), R, o, C, st, n_stages);
                 if (R.status == -2) { err = "kt_fit: " + R.message; return -1; }
+                R.stage_cut = cut;
             }
+            R = reported(R);
             if (R.status >= 0 && R.cost < best.cost) { best = R; best_start = st; }
             else if (best_start < 0 && st == o.n_starts - 1 && best.th.size() == 0) best = R;
         }

@@ -228,7 +228,7 @@ typedef struct {
     int jacobian_evaluations;  /* of evaluations: those of finite-difference Jacobian columns */
     int iterations;            /* LM iterations, all starts */
     int best_start;            /* which start gave the optimum (0 = the given start) */
-    int status;                /* 0 converged, 1 max iterations, < 0 failure */
+    int status;                /* 0 converged (every horizon stage), 1 max iterations (in any stage), < 0 failure */
     double seconds;            /* wall-clock time of the fit */
     double cpu_seconds;        /* CPU time of the fit: the calling thread's and its helper threads' */
     char message[256];         /* why it stopped */
