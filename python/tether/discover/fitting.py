@@ -192,6 +192,7 @@ class _DirectResult:
     evaluations: int
     message: str
     ci95: dict = field(default_factory=dict)
+    status: int = 1
 
 
 #: engine options for every discovery fit (e.g. n_threads): the search compares candidates with
@@ -272,7 +273,7 @@ def _fit_direct(trace, spec, names, start, held=None, **options):
                          values=r.as_dict(), std_error=dict(zip(r.names, map(float, r.std_error))),
                          unidentifiable=list(r.unidentifiable), rms=rms, predictions=[pred], evaluations=r.evaluations,
                          message=r.message, ci95={n: (float(a), float(b)) for n, a, b in
-                                                   zip(r.names, r.ci_low, r.ci_high)})
+                                                   zip(r.names, r.ci_low, r.ci_high)}, status=int(r.status))
 
 
 #: every fit of a discovery is capped at this many simulations of the start model (times the stage's
@@ -306,8 +307,9 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
               held: Sequence[str] = (), own_thread: bool = False, baseline_rms: float | None = None,
               nuisance: Sequence[str] = (), **options) -> ModelFit:
     """Fit ``spec`` from each start (a few iterations each when there are several; None = tether.fit's
-    data-based estimate), then carry the best to convergence. ``best_start`` of the result is the
-    index of the start that won. ``extra`` frees shape terms beyond free_parameters; ``held`` keeps
+    data-based estimate), then carry the best to convergence (where the best converged within those
+    iterations, the best start still descending races it instead: _carried_on). ``best_start`` of
+    the result is the index of the start that won. ``extra`` frees shape terms beyond free_parameters; ``held`` keeps
     terms at their start values. own_thread: this model is fitted beside others, every fit on the
     calling thread alone (see _fit_once). baseline_rms: the error of the model this one extends;
     where no quick fit gets 0.1 % below it, the best of them is returned as it is (a candidate with
@@ -336,21 +338,17 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
             evaluations += r.evaluations
             if best is None or r.rms < best.rms:
                 best, best_i = r, i
-        gains = best is not None and (baseline_rms is None or best.rms < (1.0 - CRITERIA.least_gain) * baseline_rms)
-        if gains:
-            # carried to convergence along its own path: the winner's start again, with the full
-            # iteration budget (restarting from the quick fit's end resets the staging and the
-            # step control, and can settle elsewhere: a creep fit went 1.18 -> 1.76 x noise that
-            # way); the restart from the quick fit's end only where the full run fails or is worse
-            cap2 = None if work_cap is None else 2 * work_cap
-            tries = [starts[best_i], dict(best.values)]
-            for s in tries:
-                r, m = _fit_once(trace, spec, names, s, sc, work_cap=cap2, own_thread=own_thread, **options)
-                if r is not None:
-                    evaluations += r.evaluations
-                    if r.rms <= best.rms:
-                        best = r
-                        break
+        if best is not None:
+            def fit_from(s, cap, iterations=None):
+                more = {} if iterations is None else {"max_iterations": iterations}
+                return _fit_once(trace, spec, names, s, sc, work_cap=cap, own_thread=own_thread, **more, **options)
+
+            def gains(rms):
+                return baseline_rms is None or rms < (1.0 - CRITERIA.least_gain) * baseline_rms
+
+            best, best_i, more = _carried_on(fit_from, starts, quick_fits, best, best_i, gains, quick_iterations,
+                                             work_cap)
+            evaluations += more
     else:
         best, msg = _fit_once(trace, spec, names, starts[0], sc, work_cap=None if work_cap is None else 2 * work_cap,
                               own_thread=own_thread, **options)
@@ -369,6 +367,65 @@ def fit_model(trace: Trace, spec: ModelSpec, effects: Sequence[str], starts: Seq
                     seconds=time.perf_counter() - t0, message=best.message, std_error=dict(best.std_error),
                     unidentifiable=list(best.unidentifiable), best_start=best_i, shape=tuple(extra),
                     intervals={k: (float(a), float(b)) for k, (a, b) in best.ci95.items()})
+
+
+def _carried_on(fit_from: Callable, starts: Sequence, quick_fits: Sequence, best, best_i: int, gains: Callable,
+                quick_iterations: int, work_cap: float | None):
+    """After fit_model's quick round (``quick_fits``, won by ``best`` from start ``best_i``; ``gains(rms)``:
+    an error that gains on the model this one extends): (best, its start, the evaluations spent here).
+    ``fit_from(start, work_cap, iterations=None)`` is one fit (_fit_once's result and message). A fit is
+    carried to convergence only where it gains, as the quick round's winner is."""
+    cap2 = None if work_cap is None else 2 * work_cap
+    evaluations = 0
+    descending = _best_still_descending(quick_fits, best_i)
+    if descending is not None:
+        # the winner converged within the quick iterations (carried on, it would end where it is,
+        # gain or none): the best start still descending there races it for as many iterations
+        # again (from its start: a fit continued from where it stopped restarts its staging and
+        # step control, and settles early), and is carried to convergence where it then leads
+        r, _ = fit_from(starts[descending], work_cap, 2 * quick_iterations)
+        evaluations += r.evaluations if r is not None else 0
+        if r is not None and r.rms < best.rms:
+            best, best_i = r, descending
+            if _stopped_at_limit(r) and gains(r.rms):
+                r, _ = fit_from(starts[descending], cap2)
+                if r is not None:
+                    evaluations += r.evaluations
+                    best = r if r.rms < best.rms else best
+    elif gains(best.rms):
+        # carried to convergence along its own path: the winner's start again, with the full
+        # iteration budget (restarting from the quick fit's end resets the staging and the step
+        # control, and can settle elsewhere: a creep fit went 1.18 -> 1.76 x noise that way); the
+        # restart from the quick fit's end (its values over the start's, which hold the terms
+        # the fit keeps fixed) only where the full run fails or is worse
+        for s in (starts[best_i], {**(starts[best_i] or {}), **best.values}):
+            r, _ = fit_from(s, cap2)
+            if r is not None:
+                evaluations += r.evaluations
+                if r.rms <= best.rms:
+                    best = r
+                    break
+    return best, best_i, evaluations
+
+
+def _best_still_descending(quick_fits: Sequence, best_i: int) -> int | None:
+    """Where the quick fits' winner (index ``best_i``) converged within its iterations, the index of
+    the best quick fit that stopped at its iteration limit instead (still descending, its optimum not
+    yet seen); None otherwise. ``quick_fits``: (result or None, message)."""
+    winner = quick_fits[best_i][0]
+    if getattr(winner, "status", 1) != 0 or _stopped_at_limit(winner):
+        return None
+    going = [(r.rms, i) for i, (r, _) in enumerate(quick_fits)
+             if r is not None and i != best_i and _stopped_at_limit(r) and math.isfinite(r.rms)]
+    return min(going)[1] if going else None
+
+
+def _stopped_at_limit(r) -> bool:
+    """A fit that stopped at its iteration limit in any of its stages (engine status 1, which covers
+    the engine's horizon stages): run longer, it walks on from there, in a later stage too, so where
+    it ended is not the optimum it would reach. A fit converged in its last stage after an earlier
+    one was cut ends elsewhere than the same fit run longer."""
+    return getattr(r, "status", 1) == 1 or any(s.get("status") == 1 for s in getattr(r, "stages", None) or ())
 
 
 def _heldout(trace: Trace, spec: ModelSpec, params: dict, held_out: np.ndarray) -> float:

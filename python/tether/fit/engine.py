@@ -250,7 +250,8 @@ def _run_stages(problem: _Problem, n_starts: int, progress: Callable[[FitProgres
         current.update({n: min(max(v, problem.box[n][0]), problem.box[n][1]) for n, v in r.as_dict().items()})
         stage_log.append({"stage": sname, "free": list(names), "rms": math.sqrt(2 * r.cost / problem.n_eff),
                           "evaluations": r.evaluations, "iterations": r.iterations,
-                          "seconds": _time.perf_counter() - t_stage, "message": r.message})
+                          "seconds": _time.perf_counter() - t_stage, "message": r.message,
+                          "status": int(r.status)})
     assert r is not None
     for x in problem.exps:   # leave the experiments as built (held values of the first stage undone)
         x.exp.settings = {**x.exp.settings, **{n: current[n] for n in problem.free}}
