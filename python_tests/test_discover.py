@@ -24,8 +24,6 @@ from tether.discover import document, fitting, judge, refine, rival, samples, sc
 from tether.discover.nuisance import nuisance_start
 from tether.traces import read_trace
 
-REPO = Path(__file__).resolve().parents[1]
-BUNDLED = REPO / "reference_results" / "discovery" / "freevib_hidden"
 FIELDS = ("added_effects", "rmse_initial", "rmse_final", "noise_estimate", "steps", "final_params")
 STEP_FIELDS = ("effect", "where", "evidence", "rmse_before", "rmse_after")
 
@@ -660,63 +658,27 @@ def test_a_part_fit_holds_the_table_knots_beyond_its_reach():
     assert refine._knots_unseen(_Part, ("bw_n",), [{"c_table_dx": 0.02}]) == ()
 
 
-def test_bundled_trace_two_effects_json_report_and_rerun(tmp_path, run_cli):
-    """The demo's record (power-law stiffness and slack hidden): both named, in steps that each
-    shrink the gap; the JSON has the contract's fields; the report shows the story; the JSON is a
-    --params file that predicts another record of the same tether at its noise."""
+def test_the_json_and_the_report_asked_for_are_written_and_agree(tmp_path, run_cli):
+    """`tether discover STEM --json OUT --report DIR` on a free vibration with a hidden nonlinear
+    stiffness: the effect named, the JSON with the contract's fields and its steps, the report
+    page with its plots, and the page's figures the JSON's. (The bundled record's whole story, its
+    steps and its JSON as a --params file, is test_demo's: the demo discovers that record.)"""
+    stem, tr = _write(tmp_path, "t", "free_vibration", {"nonlinear_stiffness"}, 3, noise=1e-4, rate=100.0,
+                      duration_s=5.0)
     report = tmp_path / "report"
-    doc, out, err = _discover_cli(run_cli, BUNDLED, tmp_path, "--report", report)
-    truth = json.loads(BUNDLED.with_suffix(".json").read_text())["hidden"]
-    sigma = truth["noise_sigma_m"]
-    assert set(doc["added_effects"]) == set(truth["revealed"]) == {"nonlinear_stiffness", "slack"}
+    doc, out, err = _discover_cli(run_cli, stem, tmp_path, "--report", report)
+    assert doc["added_effects"] == ["nonlinear_stiffness"], doc["added_effects"]
     for f in FIELDS:
         assert f in doc, f
-    assert doc["noise_estimate"] == pytest.approx(sigma, rel=0.15)
-    assert doc["rmse_final"] <= 1.5 * sigma < 10 * sigma < doc["rmse_initial"]
-    assert [s["effect"] for s in doc["steps"]] == doc["added_effects"]
-    prev = doc["rmse_initial"]
-    t_end = float(read_trace(BUNDLED).time[-1])
     for s in doc["steps"]:
         for f in STEP_FIELDS:
             assert f in s, f
-        assert s["rmse_before"] == pytest.approx(prev) and s["rmse_after"] < 0.5 * s["rmse_before"]
-        prev = s["rmse_after"]
-        assert s["where"], "a step names the windows of disagreement"
-        for w in s["where"]:
-            assert 0.0 <= w["start_s"] < w["end_s"] <= t_end + 1e-9
-        assert s["evidence"]
-    # the final model is the last step's, or the last shape refinement kept after it (the power
-    # term of the cubic follows the generator's power law: 1.41 -> 1.01 x noise on this record),
-    # fitted once more to the whole record, which may only lower its error
-    kept = [r for r in doc["refinements"] if r["accepted"]]
-    if kept:
-        assert set(kept[-1]["parameters"]) <= set(doc["shape_refined"])
-    assert doc["rmse_final"] <= (kept[-1]["rmse_after"] if kept else prev) * (1 + 1e-9)
-    assert doc["rmse_final"] <= prev
-    # every candidate fitted says what it cost, the rejected ones too (their curves are dropped)
-    fitted = [c for r in doc["rounds"] for c in r["candidates"]
-              if c["rmse"] is not None and math.isfinite(c["rmse"])]
-    assert len(fitted) > len(doc["added_effects"])
-    for c in fitted:
-        assert 0.0 < c["seconds"] <= doc["seconds"], c
-    # progress on stderr, the account on stdout
-    assert "added nonlinear_stiffness" in err and "discovered: nonlinear_stiffness, slack" in out
+    assert doc["rmse_final"] <= 1.5 * tr.meta["hidden"]["noise_sigma_m"] < doc["rmse_initial"]
+    assert "added nonlinear_stiffness" in err and "discovered: nonlinear_stiffness" in out
     page = (report / "index.html").read_text()
     for img in ("models.png", "gap.png"):
         assert img in page and (report / img).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    # the same tether released from another height, simulated with the discovered model
-    other, tr2 = _write(tmp_path, "other", "free_vibration", {"nonlinear_stiffness", "slack"}, 7, noise=1e-4,
-                        rate=200.0, duration_s=10.0, stiffness_law="power", x0_m=-0.11)
-    assert tr2.meta["hidden"]["params"]["EA_N"] == truth["params"]["EA_N"]
-    rms = _rerun_rms(run_cli, tmp_path, other, tmp_path / "freevib_hidden.discovery.json", tr2.measured)
-    # ... against the linear baseline fitted to the same first record
-    lin = tmp_path / "linear.json"
-    status, _, err = run_cli("fit", BUNDLED, "--model", "linear", "--out", lin)
-    assert status == 0, err
-    rms_lin = _rerun_rms(run_cli, tmp_path, other, lin, tr2.measured)
-    # the cubic stands in for the generator's power law: outside the amplitudes it was fitted on it
-    # is not at the noise (2.6 sigma), but far nearer the truth than the baseline (> 50 sigma)
-    assert rms < 3.0 * sigma and rms < 0.1 * rms_lin, (rms, rms_lin)
+    assert f"{doc['rmse_final'] / doc['noise_estimate']:.2f}" in page
 
 
 # ---------------------------------------------------------------------------------------------
