@@ -13,10 +13,10 @@ import math
 import re
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 import hidden_effects as he
+from discovery_outputs import read_strict_json, rerun_rms
 from tether.traces import read_trace
 
 REF = Path(__file__).resolve().parents[1] / "reference_results"
@@ -45,7 +45,7 @@ def _bundled_discovery_holds_its_contract(run_cli, tmp_path, report, out, err):
     """The demo's record (power-law stiffness and slack hidden): both named, in steps that each
     shrink the gap; the JSON has the contract's fields; the report shows the story; the JSON is a
     --params file that predicts another record of the same tether at its noise."""
-    doc = json.loads((report / "discovery.json").read_text(), parse_constant=_strict)
+    doc = read_strict_json(report / "discovery.json")
     truth = json.loads(BUNDLED.with_suffix(".json").read_text())["hidden"]
     sigma = truth["noise_sigma_m"]
     assert set(doc["added_effects"]) == set(truth["revealed"]) == {"nonlinear_stiffness", "slack"}
@@ -89,25 +89,12 @@ def _bundled_discovery_holds_its_contract(run_cli, tmp_path, report, out, err):
                       duration_s=10.0, stiffness_law="power", x0_m=-0.11)
     tr2.write(tmp_path, "other")
     assert tr2.meta["hidden"]["params"]["EA_N"] == truth["params"]["EA_N"]
-    rms = _rerun_rms(run_cli, tmp_path, tmp_path / "other", report / "discovery.json", tr2.measured)
+    rms = rerun_rms(run_cli, tmp_path, tmp_path / "other", report / "discovery.json", tr2.measured)
     # ... against the linear baseline fitted to the same first record
     lin = tmp_path / "linear.json"
     status, _, err = run_cli("fit", BUNDLED, "--model", "linear", "--out", lin)
     assert status == 0, err
-    rms_lin = _rerun_rms(run_cli, tmp_path, tmp_path / "other", lin, tr2.measured)
+    rms_lin = rerun_rms(run_cli, tmp_path, tmp_path / "other", lin, tr2.measured)
     # the cubic stands in for the generator's power law: outside the amplitudes it was fitted on it
     # is not at the noise (2.6 sigma), but far nearer the truth than the baseline (> 50 sigma)
     assert rms < 3.0 * sigma and rms < 0.1 * rms_lin, (rms, rms_lin)
-
-
-def _strict(token):
-    raise AssertionError(f"not JSON: {token} (a strict parser such as jq refuses it)")
-
-
-def _rerun_rms(run_cli, tmp_path, stem, params, measured) -> float:
-    """RMS error of `tether simulate STEM --params PARAMS` (the FMU) against ``measured``."""
-    sim = tmp_path / "sim.csv"
-    status, _, err = run_cli("simulate", stem, "--params", params, "--out", sim)
-    assert status == 0, err
-    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
-    return float(np.sqrt(np.mean((y - measured) ** 2)))

@@ -9,7 +9,6 @@ bench/discovery_eval.py: it takes tens of minutes, too long for CI.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -18,6 +17,7 @@ import numpy as np
 import pytest
 
 import hidden_effects as he
+from discovery_outputs import read_strict_json, rerun_rms
 from tether import discover as D
 from tether import models
 from tether.discover import document, fitting, judge, refine, rival, samples, scales, search, starts
@@ -38,11 +38,7 @@ def _discover_cli(run_cli, stem, tmp_path, *extra):
     out = tmp_path / f"{Path(stem).name}.discovery.json"
     status, stdout, stderr = run_cli("discover", stem, "--json", out, *extra)
     assert status == 0, stderr
-    return json.loads(out.read_text(), parse_constant=_strict), stdout, stderr
-
-
-def _strict(token):
-    raise AssertionError(f"not JSON: {token} (a strict parser such as jq refuses it)")
+    return read_strict_json(out), stdout, stderr
 
 
 def _record_and_part(stem):
@@ -51,15 +47,6 @@ def _record_and_part(stem):
     tr = read_trace(stem)
     part, held_out = samples.heldout_split(tr, judge.CRITERIA.fit_part)
     return tr, D.estimate_noise(tr).sigma, scales._scales(tr), part, held_out, scales._scales(part)
-
-
-def _rerun_rms(run_cli, tmp_path, stem, params, measured) -> float:
-    """RMS error of `tether simulate STEM --params PARAMS` (the FMU) against ``measured``."""
-    sim = tmp_path / "sim.csv"
-    status, _, err = run_cli("simulate", stem, "--params", params, "--out", sim)
-    assert status == 0, err
-    y = np.genfromtxt(sim, delimiter=",", names=True)["displacement"]
-    return float(np.sqrt(np.mean((y - measured) ** 2)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -183,7 +170,7 @@ def test_shape_refinement_follows_a_damping_that_levels_off(tmp_path, run_cli):
     assert doc["rmse_final"] == pytest.approx(kept[0]["rmse_after"]) and doc["rmse_final"] <= 1.5 * sigma
     assert doc["shape_refined"] == kept[0]["parameters"] and doc["parameters"]["c_table_dx"] > 0
     assert "shape of nonlinear_damping refined" in out
-    rerun = _rerun_rms(run_cli, tmp_path, stem, tmp_path / "forced_levels_off.discovery.json", tr.measured)
+    rerun = rerun_rms(run_cli, tmp_path, stem, tmp_path / "forced_levels_off.discovery.json", tr.measured)
     assert rerun == pytest.approx(doc["rmse_final"], rel=1e-3)
 
 
@@ -564,7 +551,7 @@ def test_a_damping_the_polynomial_follows_in_part_is_named_with_the_table(tmp_pa
     print(f"FIGURE hysteresis + Gaussian damping: rmse_final {doc['rmse_final'] / sigma:.2f} x noise")
     assert doc["rmse_final"] <= 1.8 * sigma
     assert doc["parameters"]["c_table_dx"] > 0 and doc["parameters"]["c1"] == 0.0
-    rerun = _rerun_rms(run_cli, tmp_path, stem, tmp_path / "forced_hyst_gauss.discovery.json", tr.measured)
+    rerun = rerun_rms(run_cli, tmp_path, stem, tmp_path / "forced_hyst_gauss.discovery.json", tr.measured)
     assert rerun == pytest.approx(doc["rmse_final"], rel=1e-3)
 
 
@@ -878,7 +865,7 @@ def test_a_long_record_searched_thinned_reports_the_whole_records_errors(tmp_pat
     # the errors reported are the whole record's: the FMU reruns the final model on all 9001 samples
     # (OUT.json as --params: the model's parameters and, for its own record, the nuisance values)
     measured = read_trace(stem).measured
-    rerun = _rerun_rms(run_cli, tmp_path, stem, tmp_path / "forced_long.discovery.json", measured)
+    rerun = rerun_rms(run_cli, tmp_path, stem, tmp_path / "forced_long.discovery.json", measured)
     assert rerun == pytest.approx(doc["rmse_final"], rel=1e-6)
     assert doc["steps"][0]["rmse_before"] == doc["rmse_initial"]
     # and the start model's values from every third sample fit the whole record as well as its own
