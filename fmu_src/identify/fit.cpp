@@ -615,6 +615,7 @@ LMResult polish_with_central_differences(const Problem &P, const LMResult &R, co
     oc.central_differences = 1;
     LMResult Rc = levenberg_marquardt(P, R.th, oc, C, start_no, n_stages - 1, n_stages);
     if (Rc.status == -2) return Rc;
+    Rc.stage_cut = R.stage_cut; // the polish continues the last stage: the earlier ones are as they were
     return Rc.status >= 0 && Rc.cost <= R.cost ? Rc : R;
 }
 
@@ -819,10 +820,8 @@ int kt_fit(const kt_experiment *experiments, int n_exp, int k, const char *const
             LMResult R = fit_through_stages(stages, th, o, C, st);
             if (R.status == -2) { err = "kt_fit: " + R.message; return -1; }
             if (R.status >= 0 && o.central_differences == KT_POLISH_CENTRAL) {
-                const bool cut = R.stage_cut;
                 R = polish_with_central_differences(stages.back(), R, o, C, st, n_stages);
                 if (R.status == -2) { err = "kt_fit: " + R.message; return -1; }
-                R.stage_cut = cut;
             }
             R = reported(R);
             if (R.status >= 0 && R.cost < best.cost) { best = R; best_start = st; }

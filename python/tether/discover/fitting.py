@@ -413,7 +413,7 @@ def _best_still_descending(quick_fits: Sequence, best_i: int) -> int | None:
     the best quick fit that stopped at its iteration limit instead (still descending, its optimum not
     yet seen); None otherwise. ``quick_fits``: (result or None, message)."""
     winner = quick_fits[best_i][0]
-    if getattr(winner, "status", 1) != 0 or _stopped_at_limit(winner):
+    if winner.status != 0 or _stopped_at_limit(winner):
         return None
     going = [(r.rms, i) for i, (r, _) in enumerate(quick_fits)
              if r is not None and i != best_i and _stopped_at_limit(r) and math.isfinite(r.rms)]
@@ -425,7 +425,8 @@ def _stopped_at_limit(r) -> bool:
     the engine's horizon stages): run longer, it walks on from there, in a later stage too, so where
     it ended is not the optimum it would reach. A fit converged in its last stage after an earlier
     one was cut ends elsewhere than the same fit run longer."""
-    return getattr(r, "status", 1) == 1 or any(s.get("status") == 1 for s in getattr(r, "stages", None) or ())
+    # (tether.fit's results log their stages; the direct engine fit's have none)
+    return r.status == 1 or any(s["status"] == 1 for s in getattr(r, "stages", ()))
 
 
 def _heldout(trace: Trace, spec: ModelSpec, params: dict, held_out: np.ndarray) -> float:

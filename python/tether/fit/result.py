@@ -39,7 +39,7 @@ class FitResult:
     traces: list = field(default_factory=list)          # trace names
     noise: list = field(default_factory=list)           # noise level estimated per trace (measured unit)
     start: dict = field(default_factory=dict)           # the start values of the free parameters
-    stages: list = field(default_factory=list)          # per stage: name, free, rms, evaluations, seconds
+    stages: list = field(default_factory=list)          # per stage: name, free, rms, evaluations, seconds, status
     condition: float = float("nan")
     singular_values: list = field(default_factory=list)
     # nuisance parameters (docs/nuisance.md): name -> value of every one fitted or given (fixed);
