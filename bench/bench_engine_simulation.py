@@ -61,6 +61,11 @@ def load_engine(path: str):
             os.environ["KT_IDENTIFY_LIB"] = saved_env
 
 
+def record_stem(name: str) -> str:
+    """The file stem build_record writes the record ``name`` under."""
+    return name.replace(" ", "_").replace(",", "")
+
+
 def build_record(name, experiment, effects, model, rate, seed, folder):
     """(experiment, free parameters {name: (lo, hi, start)}, scaling, engine options) of one record,
     as `tether fit` sets its last stage up (tether.fit.engine._problem: the data-based start)."""
@@ -70,7 +75,7 @@ def build_record(name, experiment, effects, model, rate, seed, folder):
     from tether.traces import read_trace
 
     kw = dict(rate=rate, duration_s=10.0) if rate else {}
-    stem = name.replace(" ", "_").replace(",", "")
+    stem = record_stem(name)
     he.generate(experiment, set(effects), seed, **kw).write(folder, stem)
     trace = read_trace(Path(folder) / stem)
     pb = _problem([trace], parse_model(model, trace.experiment), None, {}, {}, None, {})

@@ -51,7 +51,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rtol", default=DEFAULT_RTOLS, help=f"tolerances, tightest first (default {DEFAULT_RTOLS})")
     ap.add_argument("--only", default=None, help="only the records whose name contains this")
     a = ap.parse_args(argv)
-    from bench_engine_simulation import RECORDS, build_record
+    from bench_engine_simulation import RECORDS, build_record, record_stem
     from tether import identify_native as idn
     from tether.noise import estimate_noise
     from tether.traces import read_trace
@@ -65,7 +65,7 @@ def main(argv=None) -> int:
         if a.only and a.only not in name:
             continue
         exp, free, scaling, opts = build_record(name, experiment, effects, model, rate, 2000 + i, folder)
-        noise = estimate_noise(read_trace(os.path.join(folder, name.replace(" ", "_").replace(",", "")))).sigma
+        noise = estimate_noise(read_trace(os.path.join(folder, record_stem(name)))).sigma
         n = len(exp.time)
         reference = prediction(exp, free, rtols[0])
         for rtol in rtols:
