@@ -15,7 +15,7 @@ from .. import nuisance as NZ
 from ..identify_native import FORWARD
 from ..models import IWAN_EPS, IWAN_K, ModelSpec, parse_model
 from ..traces import Trace
-from .laws import _floor, _POSITIVE, free_parameters, HELD_AT_START
+from .laws import _floor, _POSITIVE, free_parameters, HELD_AT_START, keeps_model_tolerance
 from .scales import _Scales
 
 
@@ -142,6 +142,7 @@ def _fit_once(trace, spec, names, start, sc, work_cap: float | None = None, dead
             and k in spec.parameters}
     held.update(_held_nuisance(start, names))
     options = {**ENGINE_OPTIONS, **options}
+    options.setdefault("rtol", search_rtol(trace, spec))
     if deadline is not None and time.perf_counter() >= deadline:
         return None, OUT_OF_BUDGET
     if own_thread:
@@ -193,6 +194,25 @@ class _DirectResult:
     message: str
     ci95: dict = field(default_factory=dict)
     status: int = 1
+
+
+#: CVODE's relative tolerance in the search's fits of a record with an input (the FMU parameter rtol):
+#: there the integrator's steps follow the tolerance, and at 1e-6 against the model's own 1e-8 a
+#: simulation costs a half to a quarter and stays within a few thousandths of the noise
+#: (bench/bench_integration_tolerance.py, docs/speed.md 2026-12-06). The final fit keeps the model's
+#: own (MODEL_RTOL): the error reported of the final model is the one its --params rerun gets
+SEARCH_RTOL = 1e-6
+#: the engine's rtol option that keeps the model's own tolerance
+MODEL_RTOL = 0.0
+
+
+def search_rtol(trace: Trace, spec: ModelSpec) -> float:
+    """The integration tolerance of a search's fit of ``spec`` to ``trace``: SEARCH_RTOL, but the
+    model's own on a free vibration (sampled between solver calls, about one evaluation a sample at
+    either tolerance: nothing to gain) and for a law that keeps it (Law.model_tolerance)."""
+    if trace.input_column is None or keeps_model_tolerance(spec):
+        return MODEL_RTOL
+    return SEARCH_RTOL
 
 
 #: engine options for every discovery fit (e.g. n_threads): the search compares candidates with

@@ -16,8 +16,8 @@ from ..models import HYSTERESIS_PARAMETERS, parse_model
 from ..traces import Trace
 from .document import _evidence, _slack_seen_by, ordinal
 from .evidence import disagreement, regime_table, regimes, signatures
-from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, fit_cost, fit_model, ModelFit,
-                      predict, SECOND_SEARCH_CAP_SHARE, work_ratio)
+from .fitting import (_heldout, _side_by_side, CAP_SIMULATIONS, DEFAULT_BUDGET, fit_cost, fit_model, MODEL_RTOL,
+                      ModelFit, predict, SECOND_SEARCH_CAP_SHARE, work_ratio)
 from .judge import (CRITERIA, _gap, _not_kept_for_budget, _partial_damping_gain, _slack_acts, acts_as_itself,
                     bic_change, full_data_verdict, heldout_verdict, leaves_unexplained, retested_beside_refinements,
                     refuse_tied_effects, retest_verdict, slack_heldout_unasked, table_to_try,
@@ -749,7 +749,7 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
                                work_cap=self.every * self.cap, extra=cur.shape,
                                held=self.shape_held + _replaced(cur.shape), deadline=self.deadline,
                                max_iterations=WHOLE_RECORD_ITERATIONS, nuisance=self.nuisance,
-                               central_differences=POLISH_CENTRAL)
+                               central_differences=POLISH_CENTRAL, rtol=MODEL_RTOL)
             if not fitted.ok:
                 self.stop += (f"; the final fit failed ({fitted.message}): the searched values are kept")
                 fitted = None
