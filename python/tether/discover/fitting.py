@@ -196,9 +196,9 @@ class _DirectResult:
     status: int = 1
 
 
-#: CVODE's relative tolerance in the search's fits of a record with an input (the FMU parameter rtol):
-#: there the integrator's steps follow the tolerance, and at 1e-6 against the model's own 1e-8 a
-#: simulation costs a half to a quarter and stays within a few thousandths of the noise
+#: CVODE's relative tolerance in the search's fits of a forced record (the FMU parameter rtol): there
+#: the integrator's steps follow the tolerance, and at 1e-6 against the model's own 1e-8 a simulation
+#: costs a half to a quarter and stays within a few thousandths of the noise
 #: (bench/bench_integration_tolerance.py, docs/speed.md 2026-12-06). The final fit keeps the model's
 #: own (MODEL_RTOL): the error reported of the final model is the one its --params rerun gets
 SEARCH_RTOL = 1e-6
@@ -207,12 +207,13 @@ MODEL_RTOL = 0.0
 
 
 def search_rtol(trace: Trace, spec: ModelSpec) -> float:
-    """The integration tolerance of a search's fit of ``spec`` to ``trace``: SEARCH_RTOL, but the
-    model's own on a free vibration (sampled between solver calls, about one evaluation a sample at
-    either tolerance: nothing to gain) and for a law that keeps it (Law.model_tolerance)."""
-    if trace.input_column is None or keeps_model_tolerance(spec):
-        return MODEL_RTOL
-    return SEARCH_RTOL
+    """The integration tolerance of a search's fit of ``spec`` to ``trace``: SEARCH_RTOL where a
+    simulation's work follows the tolerance (the payload rig driven by an input), else the model's
+    own: a free vibration is sampled between solver calls and the load rig is quasi-static (an
+    evaluation every few to every twenty samples at either tolerance: nothing to gain, and the
+    Jacobian's columns still move), and a law that keeps it (Law.model_tolerance) keeps it."""
+    integration_bound = trace.input_column is not None and spec.for_experiment(trace.experiment).rig == "payload"
+    return SEARCH_RTOL if integration_bound and not keeps_model_tolerance(spec) else MODEL_RTOL
 
 
 #: engine options for every discovery fit (e.g. n_threads): the search compares candidates with
