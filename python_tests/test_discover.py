@@ -219,10 +219,10 @@ def test_a_hysteresis_law_chosen_before_slack_gives_way_to_its_rival(tmp_path, c
     # to convergence, reaches 2.98: docs/speed.md, session 66.)
     est, est_held, est_rec = rival.rival_law(tr, part, held_out, cur, held, sigma, fit, {}, ["slack", "hysteresis"],
                                              lines.append)
+    assert est_rec is not None and est_rec.law == "boucwen -> iwan", lines
     with capsys.disabled():
         print(f"FIGURE rival law without the step's fit of the bank: {est.model} {est.rms / sigma:.2f} x noise "
               f"(held-out {est_held / sigma:.2f}), the rival {est_rec.rms_after / sigma:.2f}")
-    assert est_rec is not None and est_rec.law == "boucwen -> iwan", lines
     if est_rec.accepted:
         assert est.spec.hysteresis == "iwan" and est.rms == est_rec.rms_after < cur.rms
     else:

@@ -1,7 +1,7 @@
 """The search's fits of a forced record integrate at a looser tolerance than the model's own
 (fitting.SEARCH_RTOL against the FMU's rtol); free vibrations, the quasi-static load rig, and laws
-that keep the model's own (Law.model_tolerance: the Iwan bank), do not; the final fit, whose figures the report and its
---params rerun carry, keeps the model's own (docs/speed.md, 2026-12-06). Checked here: the rule,
+that keep the model's own (Law.model_tolerance: the Iwan bank), do not; the final fit, whose
+figures the report and its --params rerun carry, keeps the model's own (docs/speed.md, 2026-12-06). Checked here: the rule,
 its premise (at SEARCH_RTOL a forced record's simulation stays within a few hundredths of the noise
 of one at a tolerance a hundred times tighter than the model's own) and that a discovery runs its
 fits so."""

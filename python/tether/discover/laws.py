@@ -127,8 +127,7 @@ EFFECTS = (
         Law("iwan", S.iwan_starts, shapes=(IWAN_EPS_FIT,), rival="boucwen",
             reseed=(("restart_idle_elements", "the idle Iwan elements were restarted"),
                     ("finer_bank", "the Iwan bank was made finer")),
-            # each element's slip a corner: at rtol 1e-7 the rival bank of a forced record with
-            # slack stopped at 6.25 x noise, at the model's own 1e-8 at 2.77 x
+            # each element's slip a corner (docs/speed.md, sessions 65-66)
             model_tolerance=True),
         # the paper's loading and unloading branches, which replace the elastic law (their loading
         # curve is a power law)
