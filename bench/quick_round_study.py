@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 """Could a discovery's quick rounds drop starts early? Each start's path, recorded; not a CI test.
 
-`fit_model` (tether.discover.fitting) fits a candidate with several starts by a quick round (12
-iterations from each) and carries the winner on. This script discovers each record given with the
-search's fits one at a time (as bench/discovery_eval.py runs them) and records, for every fit_model
-call with several starts, each quick fit's error after every iteration (tether.fit's progress
-reports), its simulations, and the start that won the call in the end. Then it asks, for each
-rule "rank the starts by their error after j iterations and fit only the best m of them on":
+`fit_model` (tether.discover.fitting) fits a candidate with several starts by a quick round (its
+quick_iterations, 12 by default, from each) and carries the winner on. This script discovers each
+record given with the search's fits one at a time (as bench/discovery_eval.py runs them) and
+records, for every fit_model call with several starts, each quick fit's error after every
+iteration (tether.fit's progress reports), its simulations, and the start that won the call in
+the end. Then it asks, for each rule "rank the starts by their error after j iterations and fit
+only the best m of them on":
 
 - how often the start that won is among those kept;
 - what share of the calls' simulations the dropped starts' remaining iterations are;
@@ -20,6 +21,7 @@ docs/speed.md (2026-12-06, session 67) has the figures.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import math
 import subprocess
@@ -44,15 +46,16 @@ def record(stem: str, out: Path) -> None:
     import tether.discover.campaign_contradictions as contradictions
     import tether.discover.search as search
     import tether.fit as tfit
+    from discovery_eval import _one_fit_at_a_time
     from tether import discover as D
     from tether.discover import fitting
     from tether.traces import read_trace
 
-    fitting.ENGINE_OPTIONS["n_threads"] = 1
-    fitting.PARALLEL_FITS = 1          # the fits one after the other: one call open at a time
+    _one_fit_at_a_time(D)              # the fits one after the other: one call open at a time
     calls: list = []
     open_call: list = []
     fit_traces, fit_model = tfit.fit_traces, fitting.fit_model
+    quick_default = inspect.signature(fit_model).parameters["quick_iterations"].default
 
     def traced_fit_traces(*a, **k):
         if not open_call or "progress" in k:
@@ -67,7 +70,8 @@ def record(stem: str, out: Path) -> None:
     def traced_fit_model(trace, spec, effects, starts, sc, *a, **k):
         if len(starts) <= 1:
             return fit_model(trace, spec, effects, starts, sc, *a, **k)
-        call = {"model": spec.canonical, "effects": list(effects), "starts": len(starts), "fits": []}
+        call = {"model": spec.canonical, "effects": list(effects), "starts": len(starts),
+                "quick_iterations": k.get("quick_iterations", quick_default), "fits": []}
         open_call[:] = [call]
         try:
             r = fit_model(trace, spec, effects, starts, sc, *a, **k)
@@ -87,10 +91,11 @@ def record(stem: str, out: Path) -> None:
 
 
 def _quick_fits(call: dict) -> list | None:
-    """The call's quick round (its first ``starts`` fits, of 12 iterations each), or None where a
-    start's fit failed (the fits then do not line up with the starts)."""
+    """The call's quick round (its first ``starts`` fits, of its quick iterations each), or None where
+    a start's fit failed (the fits then do not line up with the starts)."""
     quick = call["fits"][:call["starts"]]
-    if len(quick) < call["starts"] or any(q["max_iterations"] != 12 for q in quick) or call.get("won") is None:
+    if (len(quick) < call["starts"] or call.get("won") is None
+            or any(q["max_iterations"] != call["quick_iterations"] for q in quick)):
         return None
     return quick
 
@@ -134,14 +139,16 @@ def analyze(folder: Path) -> None:
                     saved[(j, m)] += sum(quick[i]["simulations"] - at[i][1] for i in order[m:])
     print(f"{len(runs)} records; simulations of the calls with several starts: {total}, "
           f"their quick rounds {quick_total} ({quick_total / max(total, 1):.0%})")
-    print("rank after j iterations, keep m | winner kept | kept best worse by > 2 % | simulations saved")
+    print(f"rank after j iterations, keep m | winner kept | kept best worse by > {REGRET - 1:.0%} | "
+          f"simulations saved")
     for (j, m) in sorted(kept):
         k, l_ = kept[(j, m)], loss[(j, m)]
         print(f"  j={j} m={m} | {sum(k)}/{len(k)} | {sum(x > REGRET for x in l_)}/{len(l_)} "
               f"(worst {max(l_):.2f} x) | {saved[(j, m)] / max(total, 1):.0%}")
     print("the start that won, by the effect added and the number of starts:")
     for key in sorted(won_by, key=lambda k: (k[0], k[1])):
-        print(f"  {key[0]:20s} {key[1]} starts: " + ", ".join(f"start {i}: {n}" for i, n in sorted(won_by[key].items())))
+        wins = ", ".join(f"start {i}: {n}" for i, n in sorted(won_by[key].items()))
+        print(f"  {key[0]:20s} {key[1]} starts: {wins}")
 
 
 def main(argv=None) -> int:
