@@ -64,10 +64,24 @@ def test_a_hidden_mass_and_an_offset_are_not_named_as_effects(slack_forced, run_
 
 
 def test_without_the_nuisance_parameters_the_same_record_is_misread(slack_forced):
+    """The hidden set's model (linear+slack) fitted with the record's stated mass and no offset stays
+    far above the noise, from the data-based start with four starts and from the generator's own law
+    alike (measured 201 x), while the same fit with the nuisance parameters free reaches it (0.98 x):
+    a discovery without them cannot name slack alone within 1.5 x noise. (Until 2026-12-06 this test
+    ran that discovery, 61 s: docs/test-suite-time.md.) Such a discovery keeps every parameter that
+    applies to the record at its value and says why."""
+    from tether.fit import fit_traces
+
     stem, tr = slack_forced
-    doc = D.discovery_document(D.discover(read_trace(stem), free_nuisance=False))
+    trace = read_trace(stem)
     sigma = tr.meta["hidden"]["noise_sigma_m"]
-    assert doc["added_effects"] != ["slack"] or doc["rmse_final"] > 1.5 * sigma, doc["added_effects"]
+    truth = tr.meta["hidden"]["derived"]
+    law = {"EA": truth["k_lin_N_m"] * trace.length_m, "c0": truth["c0_N_s_m"]}
+    stated = [fit_traces([trace], "linear+slack", n_starts=4), fit_traces([trace], "linear+slack", start=law)]
+    assert min(r.rms for r in stated) > 1.5 * sigma, [r.rms / sigma for r in stated]
+    freed = fit_traces([trace], "linear+slack", free=["EA", "c0"] + D.nuisance_parameters(trace))
+    assert freed.rms <= 1.5 * sigma, freed.rms / sigma
+    doc = D.discovery_document(D.discover(trace, free_nuisance=False, budget=0.0))
     assert doc["nuisance"]["parameters"] == {}
     kept = doc["nuisance"]["not_freed"]
     # the parameters that apply to the record, each kept: the force gain is known, so no input_gain
