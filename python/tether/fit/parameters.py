@@ -140,15 +140,30 @@ FIT_RANGES = {"creep_tau1": (1.0, 1e7), "creep_tau2": (1.0, 1e7), "creep_tau3": 
               "toe_width": (1e-5, 0.1), "toe_eps": (1e-5, 0.5)}
 
 
+#: a Coulomb friction's smoothing velocity, as a share of the payload's speed scale (its amplitude
+#: times its angular frequency): a sign sharper than the low end is one no sampled swing shows, and
+#: the integrator crawls through it; above the high end tanh(v / coulomb_v) is straight over the
+#: whole swing, a viscous damping c_coulomb / coulomb_v, along which the two run off together
+#: (docs/test-suite-time.md, 2026-12-06: a campaign's fits took it to 0 and to 7e273 m/s)
+COULOMB_V_SHARE_RANGE = (1e-3, 10.0)
+
+
 def bounds_and_start(name: str, start: float, limits: dict, scales: dict) -> tuple[float, float, float, str]:
     """(low, high, start, "log" | "linear") of a free parameter: the FMU's ``limits`` (fmu_bounds)
-    narrowed by FIT_RANGES and the Iwan cap, the start moved inside and above zero where it is
-    log-scaled (``scales``: the estimate's '_' keys)."""
+    narrowed by FIT_RANGES, the Coulomb smoothing's range and the Iwan cap, the start moved inside
+    and above zero where it is log-scaled (``scales``: the estimate's '_' keys)."""
     lo, hi = limits.get(name, (None, None))
     lo = -math.inf if lo is None else float(lo)
     hi = math.inf if hi is None else float(hi)
     if name in FIT_RANGES:
         lo, hi = max(lo, FIT_RANGES[name][0]), min(hi, FIT_RANGES[name][1])
+    speed = float(scales.get("_amp", 0.0)) * float(scales.get("_omega", 0.0))
+    if name == "coulomb_v" and speed > 0 and math.isfinite(speed):
+        # widened to hold the start: a fit carried on from another fit of the record starts where that
+        # one ended, and the speed scale read off a record's part or a campaign's first record differs
+        held = start if start > 0 and math.isfinite(start) else speed * COULOMB_V_SHARE_RANGE[0]
+        lo = max(lo, min(COULOMB_V_SHARE_RANGE[0] * speed, held))
+        hi = min(hi, max(COULOMB_V_SHARE_RANGE[1] * speed, held))
     if name in IWAN_K and scales.get("_iw_cap"):
         # an element the estimate left near zero has a tiny log-sensitivity: a trial step may
         # throw it far out, where the tether turns stiff and the simulation crawls (a free
