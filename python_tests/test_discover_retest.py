@@ -121,3 +121,31 @@ def test_an_effect_the_model_reproduces_the_record_without_is_removed():
     assert s.retest(["nonlinear_stiffness"], "slack")
     assert asked == ["linear+coulomb+slack"] and s.cur is outcomes["linear+coulomb+slack"]
     assert [r.effect for r in s.removals] == ["nonlinear_stiffness"] and "within the noise" in s.removals[0].reason
+
+
+def test_an_effect_refitted_away_keeps_the_other_laws_shapes():
+    """The nuisance family's tuning record 13 (seed 1: a forced record of Gaussian damping, its mass
+    1.23 x the stated one): the polynomial c(x) left 5.3 sigma, a cubic named beside it took that to
+    1.6, and at the end the table of c(x) came in as the damping law's shape (0.99 x noise). The
+    cubic was then tested again beside the table, but the model without it was refitted with the
+    polynomial in the table's place (1.89 x noise), and the cubic stayed; with the table free and the
+    terms it replaced held, the model without the cubic reaches 0.97 x and the cubic goes
+    (docs/discovery.md, 2026-12-06). Here the reduced model's fit reaches the noise only with the
+    table free."""
+    from tether.discover.laws import DAMPING_TABLE, _replaced
+
+    cur = _fit("simplified", ("nonlinear_damping", "nonlinear_stiffness"), 0.988, 12)
+    cur.shape = DAMPING_TABLE
+    with_table = _fit("linear+nonlinear_damping", ("nonlinear_damping",), 0.97, 10)
+    polynomial = _fit("linear+nonlinear_damping", ("nonlinear_damping",), 1.89, 6)
+    s, asked = _search(cur, [_refined("nonlinear_damping")], {})
+    seen = []
+
+    def fit(tr, sp, eff, starts, scales, extra=(), held=(), **kw):
+        seen.append((sp.canonical, tuple(extra), tuple(held)))
+        return with_table if set(DAMPING_TABLE) <= set(extra) else polynomial
+
+    s.fit = fit
+    s.retest_after_refinements()
+    assert seen == [("linear+nonlinear_damping", DAMPING_TABLE, _replaced(DAMPING_TABLE))]
+    assert [r.effect for r in s.removals] == ["nonlinear_stiffness"] and s.cur is with_table

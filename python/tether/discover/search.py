@@ -38,7 +38,7 @@ from .stand_in import StandIn
 from .rival import IWAN_STAGE_CAP_FACTOR
 from .samples import held_out_spans, heldout_split, search_thinning, thinned, WHOLE_RECORD_ITERATIONS
 from .scales import _scales
-from .starts import _damping_table_starts, _reduced_starts, candidate_starts
+from .starts import _damping_table_starts, _reduced_starts, candidate_starts, kept_shape
 
 
 def _refit_without_slack(trace: Trace, cur: ModelFit, results: Sequence, sigma: float) -> ModelFit | None:
@@ -567,8 +567,9 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
         cur, sigma = self.cur, self.sigma
         for e in effects:
             red = _without(cur.spec, e).for_experiment(self.trace.experiment)
+            shape = kept_shape(cur, red)
             rf = self.fit(self.trace, red, tuple(x for x in cur.effects if x != e), _reduced_starts(cur, red, self.sc),
-                          self.sc)
+                          self.sc, extra=shape, held=_replaced(shape))
             if not rf.ok:
                 continue
             bic = bic_change(rf, cur, self.n)

@@ -377,3 +377,11 @@ def _reduced_starts(cur: ModelFit, reduced: ModelSpec, sc: _Scales) -> list:
     if cur.spec.stiffness != "linear" and reduced.stiffness == "linear":
         p["EA"] = sc.ea
     return [p, None]
+
+
+def kept_shape(cur: ModelFit, reduced: ModelSpec) -> tuple:
+    """The shape terms ``cur`` frees beyond its laws (a kept refinement's: the table of c(x)) that the
+    model without one of its effects still has: refitted without the effect, the other laws keep
+    their shapes (held, the table took the polynomial's place and a cubic named beside the table
+    earned the 1.6 sigma the polynomial c(x) left: docs/discovery.md, 2026-12-06)."""
+    return tuple(k for k in cur.shape if k in reduced.parameters)
