@@ -382,6 +382,6 @@ def _reduced_starts(cur: ModelFit, reduced: ModelSpec, sc: _Scales) -> list:
 def kept_shape(cur: ModelFit, reduced: ModelSpec) -> tuple:
     """The shape terms ``cur`` frees beyond its laws (a kept refinement's: the table of c(x)) that the
     model without one of its effects still has: refitted without the effect, the other laws keep
-    their shapes (held, the table took the polynomial's place and a cubic named beside the table
-    earned the 1.6 sigma the polynomial c(x) left: docs/discovery.md, 2026-12-06)."""
+    their shapes, or an effect that made up for a law's old shape is judged against that shape
+    (docs/discovery.md, "The re-test's model keeps the other laws' shapes")."""
     return tuple(k for k in cur.shape if k in reduced.parameters)

@@ -144,7 +144,7 @@ FIT_RANGES = {"creep_tau1": (1.0, 1e7), "creep_tau2": (1.0, 1e7), "creep_tau3": 
 #: times its angular frequency): a sign sharper than the low end is one no sampled swing shows, and
 #: the integrator crawls through it; above the high end tanh(v / coulomb_v) is straight over the
 #: whole swing, a viscous damping c_coulomb / coulomb_v, along which the two run off together
-#: (docs/test-suite-time.md, 2026-12-06: a campaign's fits took it to 0 and to 7e273 m/s)
+#: (docs/discovery.md, "Dry friction")
 COULOMB_V_SHARE_RANGE = (1e-3, 10.0)
 
 
