@@ -17,7 +17,7 @@ import math
 from ..models import parse_model
 from .fitting import _heldout, ModelFit
 from .judge import CRITERIA, _law_judged, acts_as_itself, bic_change
-from .laws import _law_of, _models_for, _replaced, _without
+from .laws import _law_of, _models_for, _without
 from .rival import _law_terms
 from .records import CandidateResult, Removal, Retest, Step
 from .starts import _reduced_starts, candidate_starts, kept_shape
@@ -66,9 +66,8 @@ class RunnerUpSwap:
         factor = self.candidate_cap_factor()
         reduced = _without(cur.spec, effect).for_experiment(self.trace.experiment)
         rest = tuple(x for x in cur.effects if x != effect)
-        shape = kept_shape(cur, reduced)
         base = self.fit(self.trace, reduced, rest, _reduced_starts(cur, reduced, self.sc), self.sc, cap_factor=factor,
-                        extra=shape, held=_replaced(shape))
+                        **kept_shape(cur, reduced))
         law = _law_of(parse_model(runner_up.model, self.trace.experiment), runner_up.effect)
         new = next((m for m in _models_for(reduced, runner_up.effect, self.trace)
                     if _law_of(m, runner_up.effect) == law), None)

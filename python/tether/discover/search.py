@@ -567,9 +567,8 @@ class Search(PairStep, RunnerUpSwap, StandIn, RivalBranch):
         cur, sigma = self.cur, self.sigma
         for e in effects:
             red = _without(cur.spec, e).for_experiment(self.trace.experiment)
-            shape = kept_shape(cur, red)
             rf = self.fit(self.trace, red, tuple(x for x in cur.effects if x != e), _reduced_starts(cur, red, self.sc),
-                          self.sc, extra=shape, held=_replaced(shape))
+                          self.sc, **kept_shape(cur, red))
             if not rf.ok:
                 continue
             bic = bic_change(rf, cur, self.n)

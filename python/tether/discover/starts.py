@@ -379,9 +379,12 @@ def _reduced_starts(cur: ModelFit, reduced: ModelSpec, sc: _Scales) -> list:
     return [p, None]
 
 
-def kept_shape(cur: ModelFit, reduced: ModelSpec) -> tuple:
-    """The shape terms ``cur`` frees beyond its laws (a kept refinement's: the table of c(x)) that the
-    model without one of its effects still has: refitted without the effect, the other laws keep
-    their shapes, or an effect that made up for a law's old shape is judged against that shape
+def kept_shape(cur: ModelFit, reduced: ModelSpec) -> dict:
+    """The fit's ``extra`` and ``held`` for ``reduced``, ``cur`` without one of its effects: the shape
+    terms ``cur`` frees beyond its laws (a kept refinement's: the table of c(x)) that ``reduced``
+    still has, free, and the terms they replace, held. Refitted without the effect, the other laws
+    keep their shapes, or an effect that made up for a law's old shape is judged against that shape
     (docs/discovery.md, "The re-test's model keeps the other laws' shapes")."""
-    return tuple(k for k in cur.shape if k in reduced.parameters)
+    from .laws import _replaced
+    shape = tuple(k for k in cur.shape if k in reduced.parameters)
+    return {"extra": shape, "held": _replaced(shape)}

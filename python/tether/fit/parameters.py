@@ -157,8 +157,8 @@ def bounds_and_start(name: str, start: float, limits: dict, scales: dict) -> tup
     hi = math.inf if hi is None else float(hi)
     if name in FIT_RANGES:
         lo, hi = max(lo, FIT_RANGES[name][0]), min(hi, FIT_RANGES[name][1])
-    speed = float(scales.get("_amp", 0.0)) * float(scales.get("_omega", 0.0))
-    if name == "coulomb_v" and speed > 0 and math.isfinite(speed):
+    speed = float(scales.get("_amp", 0.0)) * float(scales.get("_omega", 0.0)) if name == "coulomb_v" else 0.0
+    if speed > 0 and math.isfinite(speed):
         # widened to hold the start: a fit carried on from another fit of the record starts where that
         # one ended, and the speed scale read off a record's part or a campaign's first record differs
         held = start if start > 0 and math.isfinite(start) else speed * COULOMB_V_SHARE_RANGE[0]
