@@ -333,6 +333,31 @@ bool jacobian(const Problem &P, const VectorXd &th, const VectorXd &r, double h,
 
 VectorXd clip(const Problem &P, const VectorXd &th) { return th.cwiseMax(P.lo).cwiseMin(P.hi); }
 
+// the parameters held at a bound that the gradient g pushes them against (descent, -g, points out)
+std::vector<char> active_bounds(const Problem &P, const VectorXd &th, const VectorXd &g)
+{
+    std::vector<char> held((std::size_t)th.size(), 0);
+    for (int j = 0; j < th.size(); ++j)
+        held[(std::size_t)j] = (th[j] <= P.lo[j] && g[j] > 0) || (th[j] >= P.hi[j] && g[j] < 0);
+    return held;
+}
+
+// the Levenberg-Marquardt step of M d = -g with the parameters ``held`` at their bounds left out of
+// the solve (their step 0). Taken where the step solved for all and clipped afterwards is too small
+// to go on: that step moves the others as if the held ones had moved too, and where the held ones
+// dominate it shrinks below xtol ("step small") far from the optimum
+VectorXd bounded_step(MatrixXd M, VectorXd g, const std::vector<char> &held)
+{
+    for (int j = 0; j < g.size(); ++j) {
+        if (!held[(std::size_t)j]) continue;
+        M.row(j).setZero();
+        M.col(j).setZero();
+        M(j, j) = 1.0;
+        g[j] = 0.0;
+    }
+    return M.ldlt().solve(-g);
+}
+
 // central_differences = 2: forward differences find the optimum's neighbourhood cheaply, but their
 // O(h) error in a weakly determined direction (e.g. stiffness against mass along a resonance)
 // leaves LM stopped short of the least-squares point; a few central-difference iterations from
@@ -429,11 +454,11 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
         const MatrixXd A = J.transpose() * J;
         const VectorXd g = J.transpose() * r;
         // projected gradient: components pushing out of the box at an active bound do not count
+        const std::vector<char> held = active_bounds(P, th, g);
+        const bool any_held = std::find(held.begin(), held.end(), 1) != held.end();
         double gmax = 0;
-        for (int j = 0; j < th.size(); ++j) {
-            const bool at_lo = th[j] <= P.lo[j] && g[j] > 0, at_hi = th[j] >= P.hi[j] && g[j] < 0;
-            if (!at_lo && !at_hi) gmax = std::max(gmax, std::fabs(g[j]));
-        }
+        for (int j = 0; j < th.size(); ++j)
+            if (!held[(std::size_t)j]) gmax = std::max(gmax, std::fabs(g[j]));
         // an iteration redone with a better J (not counted as one)
         auto redo_iteration = [&]() {
             --it;
@@ -463,7 +488,12 @@ LMResult levenberg_marquardt(const Problem &P, const VectorXd &th0, const kt_fit
                 M.diagonal() += lams[c] * dscale;
                 VectorXd tn = clip(P, th + M.ldlt().solve(-g));
                 VectorXd step = tn - th;
-                if (c == 0 && step.norm() <= o.xtol * (th.norm() + o.xtol)) { small = true; break; }
+                const double xsmall = o.xtol * (th.norm() + o.xtol);
+                if (c == 0 && step.norm() <= xsmall && any_held) {
+                    tn = clip(P, th + bounded_step(M, g, held));
+                    step = tn - th;
+                }
+                if (c == 0 && step.norm() <= xsmall) { small = true; break; }
                 if (updates > 0 && step.lpNorm<Eigen::Infinity>() > KT_SECANT_TRUST) { far = true; break; }
                 preds.push_back(-(g.dot(step) + 0.5 * step.dot(A * step)));
                 cand.push_back(tn);

@@ -165,6 +165,24 @@ int main()
         CHECK(qrc != 0 || (std::fabs(qv[0] / 3000.0 - 1) < 1e-4 && std::fabs(qv[1] / 0.8 - 1) < 1e-3),
               "fit with a refused Jacobian point: EA %g c0 %g", qv[0], qv[1]);
     }
+    // a step that throws parameters onto their bounds: the fit leaves them along the directions still
+    // free, not stopping where the clipped step is small. Without gravity the response depends on
+    // EA / m and c0 / m only, so at m = 1.9 the data made at m = 2 are met exactly by EA = 3000 * 0.95
+    // and c0 = 0.8 * 0.95. From this start the first steps end at the bounds of both, where a step
+    // solved for all and clipped afterwards is too small to go on (it stopped there, 5.8 mm RMS)
+    {
+        kt_experiment heavier = e;
+        std::vector<double> sv_m(sv, sv + 12);
+        sv_m[5] = 1.9;
+        heavier.setting_values = sv_m.data();
+        heavier.measured = meas.data();
+        const double blo[] = {100.0, 1e-3}, bhi[] = {1e5, 100.0}, bst[] = {2000.0, 0.5};
+        FitBuffers fbb(2);
+        const int rcb = kt_fit(&heavier, 1, 2, pn, blo, bhi, bst, nullptr, &o, &fbb.r);
+        CHECK(rcb == 0 && std::fabs(fbb.values[0] / 2850.0 - 1) < 1e-6 && std::fabs(fbb.values[1] / 0.76 - 1) < 1e-6,
+              "fit through its bounds: rc %d, EA %.9g (exact 2850), c0 %.9g (exact 0.76), RMS %g: %s", rcb,
+              fbb.values[0], fbb.values[1], fbb.r.rms, fbb.r.message);
+    }
     // Broyden's rank-one updates between finite-difference Jacobians (kt_fit_options.broyden_updates)
     // reach the optimum the data were made at, as the fit with a new Jacobian every iteration does,
     // with fewer Jacobian simulations: forward differences throughout, and polished by central ones
